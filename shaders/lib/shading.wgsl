@@ -1,0 +1,68 @@
+// Blinn-Phong and toon shading: written once, used by the raster fragment
+// shader and by the compute passes alike, so every path shades the same.
+
+// The direction towards a light from p, and the radiance arriving there.
+struct LightSample {
+    to_light: vec3<f32>,
+    radiance: vec3<f32>,
+    distance: f32,
+}
+
+// Directional lights arrive undiminished; point lights fall off as 1/d^2.
+fn sample_light(light: GpuLight, p: vec3<f32>) -> LightSample {
+    var s: LightSample;
+    if light.position_or_direction.w == 0.0 {
+        s.to_light = -normalize(light.position_or_direction.xyz);
+        s.radiance = light.radiance.rgb;
+        s.distance = 3.0e38;
+    } else {
+        let d = light.position_or_direction.xyz - p;
+        s.distance = length(d);
+        s.to_light = d / s.distance;
+        s.radiance = light.radiance.rgb / (s.distance * s.distance);
+    }
+    return s;
+}
+
+// The toon band of a diffuse term d = max(N.L, 0): the number of thresholds
+// at or below d, so band 0 holds the unlit side and the darkest lit band.
+fn toon_band(m: GpuMaterial, d: f32) -> u32 {
+    var band = 0u;
+    for (var i = 0u; i + 1u < m.band_count; i++) {
+        if d >= m.thresholds[i / 4u][i % 4u] {
+            band += 1u;
+        }
+    }
+    return band;
+}
+
+// Band b of N shows the diffuse level (b + 1) / N: N flat levels, the top
+// one full strength.
+fn toon_level(m: GpuMaterial, d: f32) -> f32 {
+    return f32(toon_band(m, d) + 1u) / f32(m.band_count);
+}
+
+// One light's contribution at a point with unit normal n, unit direction to
+// the viewer v, unit direction to the light l.
+// Blinn-Phong: kd * max(N.L, 0) + ks * max(N.H, 0)^shininess (the specular
+// term only where N.L > 0). Toon: the same two terms thresholded.
+fn shade_light(m: GpuMaterial, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, radiance: vec3<f32>) -> vec3<f32> {
+    let n_dot_l = dot(n, l);
+    let h = normalize(l + v);
+    let spec = select(0.0, pow(max(dot(n, h), 0.0), m.shininess), n_dot_l > 0.0);
+    if m.model == SHADING_TOON {
+        let diffuse = toon_level(m, max(n_dot_l, 0.0));
+        let highlight = select(0.0, 1.0, spec > m.specular_threshold);
+        return (m.base_color * diffuse + m.specular_color * highlight) * radiance;
+    }
+    return (m.base_color * max(n_dot_l, 0.0) + m.specular_color * spec) * radiance;
+}
+
+// The light-independent part: ambient * kd, plus the toon rim light.
+fn shade_ambient(m: GpuMaterial, n: vec3<f32>, v: vec3<f32>, ambient: vec3<f32>) -> vec3<f32> {
+    var c = ambient * m.base_color;
+    if m.model == SHADING_TOON && 1.0 - max(dot(n, v), 0.0) > m.rim_threshold {
+        c += m.rim_color;
+    }
+    return c;
+}

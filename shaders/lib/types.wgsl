@@ -1,0 +1,74 @@
+// Layout twins of the Rust structs in src/gpu/twins.rs (same names, same
+// fields; a test parses this file with naga and compares offsets).
+
+// Per-sample camera and frame data.
+struct FrameUniforms {
+    // Projection * view, with this sample's sub-pixel jitter folded in.
+    clip_from_world: mat4x4<f32>,
+    eye_in_world: vec4<f32>,
+    // Unit camera forward; view depth of p is dot(p - eye, view_forward).
+    view_forward: vec4<f32>,
+    ambient: vec4<f32>,
+    background: vec4<f32>,
+    size_px: vec2<u32>,
+    light_count: u32,
+    // 0 for the first sample after a reset: accumulation overwrites.
+    sample_index: u32,
+    jitter_px: vec2<f32>,
+    // Widest outline of any material, in pixels: the outline search radius.
+    max_outline_px: f32,
+    seed: u32,
+}
+
+// A light: w of position_or_direction is 0 for a directional light (xyz is
+// the direction the light travels) and 1 for a point light (xyz = position).
+struct GpuLight {
+    position_or_direction: vec4<f32>,
+    // colour * intensity; w = 1 when the light casts shadows.
+    radiance: vec4<f32>,
+}
+
+const SHADING_BLINN_PHONG: u32 = 0u;
+const SHADING_TOON: u32 = 1u;
+const MAX_TOON_BANDS: u32 = 16u;
+
+struct GpuMaterial {
+    base_color: vec3<f32>,
+    shininess: f32,
+    specular_color: vec3<f32>,
+    // Toon: (N.H)^shininess above this is the hard highlight.
+    specular_threshold: f32,
+    outline_color: vec3<f32>,
+    outline_width_px: f32,
+    rim_color: vec3<f32>,
+    // Toon: rim where 1 - N.V exceeds this; above 1 means no rim.
+    rim_threshold: f32,
+    model: u32,
+    band_count: u32,
+    reflectivity: f32,
+    roughness: f32,
+    // band_count - 1 increasing N.L thresholds, packed four to a vec4.
+    thresholds: array<vec4<f32>, 4>,
+}
+
+struct GpuInstance {
+    world_from_object: mat4x4<f32>,
+    // Inverse transpose of world_from_object: takes normals to world space.
+    normal_from_object: mat4x4<f32>,
+    material: u32,
+    shape: u32,
+    // 1 when world_from_object has a negative determinant (flips winding).
+    mirrored: u32,
+    _pad: u32,
+}
+
+const TONE_MAP_CLAMP: u32 = 0u;
+const TONE_MAP_REINHARD: u32 = 1u;
+
+struct ResolveUniforms {
+    width: u32,
+    tone_map: u32,
+    // 1 when the target is not an sRGB format, so the shader encodes.
+    encode_srgb: u32,
+    exposure: f32,
+}

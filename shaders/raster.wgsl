@@ -1,0 +1,65 @@
+// Raster pass: every instance of a base shape in one instanced draw, shaded
+// in the fragment shader into the G-buffer (colour, normal + depth, id).
+
+#include "lib/types.wgsl"
+#include "lib/shading.wgsl"
+
+@group(0) @binding(0) var<uniform> frame: FrameUniforms;
+@group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
+@group(0) @binding(2) var<storage, read> materials: array<GpuMaterial>;
+@group(0) @binding(3) var<storage, read> lights: array<GpuLight>;
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world_pos: vec3<f32>,
+    @location(1) world_normal: vec3<f32>,
+    @location(2) @interpolate(flat) instance: u32,
+}
+
+@vertex
+fn vs_main(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @builtin(instance_index) instance: u32,
+) -> VsOut {
+    let inst = instances[instance];
+    let p = inst.world_from_object * vec4<f32>(position, 1.0);
+    var out: VsOut;
+    out.clip = frame.clip_from_world * p;
+    out.world_pos = p.xyz;
+    out.world_normal = (inst.normal_from_object * vec4<f32>(normal, 0.0)).xyz;
+    out.instance = instance;
+    return out;
+}
+
+struct GBuffer {
+    @location(0) color: vec4<f32>,
+    // World-space unit normal and view depth.
+    @location(1) normal_depth: vec4<f32>,
+    // Instance index + 1; 0 is background.
+    @location(2) id: u32,
+}
+
+@fragment
+fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
+    let inst = instances[in.instance];
+    let m = materials[inst.material];
+    var n = normalize(in.world_normal);
+    // Two-sided surfaces (planes) shade their back with the flipped normal;
+    // a mirroring transform flips the winding, so flip the test with it.
+    if front_facing == (inst.mirrored == 1u) {
+        n = -n;
+    }
+    let eye = frame.eye_in_world.xyz;
+    let v = normalize(eye - in.world_pos);
+    var c = shade_ambient(m, n, v, frame.ambient.rgb);
+    for (var i = 0u; i < frame.light_count; i++) {
+        let ls = sample_light(lights[i], in.world_pos);
+        c += shade_light(m, n, v, ls.to_light, ls.radiance);
+    }
+    var out: GBuffer;
+    out.color = vec4<f32>(c, 1.0);
+    out.normal_depth = vec4<f32>(n, dot(in.world_pos - eye, frame.view_forward.xyz));
+    out.id = in.instance + 1u;
+    return out;
+}

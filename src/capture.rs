@@ -1,0 +1,121 @@
+//! Headless capture: scene -> renderer -> N samples -> PNG (sRGB) or EXR
+//! (linear HDR). No window, no event loop.
+
+use std::path::Path;
+
+use crate::gpu::{Gpu, GpuError};
+use crate::render::{RenderSettings, Renderer};
+use crate::scene::Scene;
+
+#[derive(Debug, thiserror::Error)]
+pub enum CaptureError {
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error("cannot write {path}: {reason}")]
+    Write { path: String, reason: String },
+    #[error("output {0}: unknown image type; use a .png (sRGB) or .exr (linear HDR) file name")]
+    UnknownFormat(String),
+}
+
+/// The image file types celray writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// 8-bit sRGB-encoded, tone mapped.
+    Png,
+    /// 32-bit float linear radiance, before tone mapping.
+    Exr,
+}
+
+impl OutputFormat {
+    /// The format a file name asks for, by extension.
+    pub fn from_path(path: &Path) -> Result<OutputFormat, CaptureError> {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("png") => Ok(OutputFormat::Png),
+            Some("exr") => Ok(OutputFormat::Exr),
+            _ => Err(CaptureError::UnknownFormat(path.display().to_string())),
+        }
+    }
+}
+
+/// A rendered image: sRGB bytes and, when asked for, linear floats.
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    /// RGBA8, sRGB-encoded, top row first.
+    pub srgb8: Vec<u8>,
+    /// RGBA f32 linear radiance (alpha 1), when read back.
+    pub linear: Option<Vec<f32>>,
+}
+
+impl Frame {
+    /// The sRGB image as an `image` buffer.
+    pub fn to_rgba8(&self) -> image::RgbaImage {
+        image::RgbaImage::from_raw(self.width, self.height, self.srgb8.clone())
+            .expect("readback size matches the image size")
+    }
+
+    /// The sRGB colour of pixel (x, y).
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let i = ((y * self.width + x) * 4) as usize;
+        [
+            self.srgb8[i],
+            self.srgb8[i + 1],
+            self.srgb8[i + 2],
+            self.srgb8[i + 3],
+        ]
+    }
+}
+
+/// Renders `scene` with `settings` to convergence on `gpu`.
+pub fn render_frame(
+    gpu: &Gpu,
+    scene: Scene,
+    settings: RenderSettings,
+    want_linear: bool,
+    progress: impl FnMut(u32, u32),
+) -> Result<Frame, CaptureError> {
+    let mut renderer = Renderer::new(gpu, scene, settings.clone())?;
+    renderer.render_to_convergence(gpu, progress)?;
+    Ok(Frame {
+        width: settings.width,
+        height: settings.height,
+        srgb8: renderer.read_srgb8(gpu)?,
+        linear: if want_linear {
+            Some(renderer.read_linear(gpu)?)
+        } else {
+            None
+        },
+    })
+}
+
+/// Writes `frame` to `path` as PNG or EXR (by extension).
+pub fn save(frame: &Frame, path: &Path) -> Result<(), CaptureError> {
+    let write_err = |e: image::ImageError| CaptureError::Write {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    };
+    match OutputFormat::from_path(path)? {
+        OutputFormat::Png => frame
+            .to_rgba8()
+            .save_with_format(path, image::ImageFormat::Png)
+            .map_err(write_err),
+        OutputFormat::Exr => {
+            let linear = frame.linear.clone().ok_or_else(|| CaptureError::Write {
+                path: path.display().to_string(),
+                reason: "no linear image was read back".into(),
+            })?;
+            image::Rgba32FImage::from_raw(frame.width, frame.height, linear)
+                .ok_or_else(|| CaptureError::Write {
+                    path: path.display().to_string(),
+                    reason: "size mismatch".into(),
+                })?
+                .save_with_format(path, image::ImageFormat::OpenExr)
+                .map_err(write_err)
+        }
+    }
+}

@@ -1,0 +1,240 @@
+//! The wgpu instance, adapter choice and device, headless or for a window.
+
+use std::sync::{Arc, Mutex};
+
+use crate::gpu::GpuError;
+
+/// Which adapter to use: `auto`, `software` or a substring of the adapter name.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum AdapterChoice {
+    /// Prefer a real GPU (discrete, then integrated), fall back to anything.
+    #[default]
+    Auto,
+    /// The CPU adapter (lavapipe on Linux).
+    Software,
+    /// The first adapter whose name contains this text (case-insensitive).
+    Named(String),
+}
+
+impl AdapterChoice {
+    /// Parses `auto`, `software` or a name fragment.
+    pub fn parse(text: &str) -> AdapterChoice {
+        match text.trim() {
+            "" | "auto" => AdapterChoice::Auto,
+            "software" | "cpu" => AdapterChoice::Software,
+            other => AdapterChoice::Named(other.to_string()),
+        }
+    }
+
+    /// The choice from the `CELRAY_ADAPTER` environment variable, else `auto`.
+    pub fn from_env() -> AdapterChoice {
+        std::env::var("CELRAY_ADAPTER")
+            .map(|v| AdapterChoice::parse(&v))
+            .unwrap_or_default()
+    }
+}
+
+/// What was said of the adapter in use: for logs, stats lines and reports.
+#[derive(Debug, Clone)]
+pub struct AdapterSummary {
+    pub name: String,
+    pub backend: String,
+    pub device_type: String,
+    pub driver: String,
+}
+
+impl AdapterSummary {
+    fn from_info(info: &wgpu::AdapterInfo) -> AdapterSummary {
+        AdapterSummary {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            device_type: format!("{:?}", info.device_type),
+            driver: format!("{} {}", info.driver, info.driver_info)
+                .trim()
+                .to_string(),
+        }
+    }
+}
+
+impl std::fmt::Display for AdapterSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} ({}, {}, driver: {})",
+            self.name, self.backend, self.device_type, self.driver
+        )
+    }
+}
+
+/// A device and queue, with the adapter they came from.
+///
+/// Validation errors that no error scope captured are collected by an
+/// uncaptured-error handler; [`Gpu::take_errors`] turns them into an error.
+pub struct Gpu {
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub summary: AdapterSummary,
+    uncaptured: Arc<Mutex<Vec<String>>>,
+}
+
+const INSTALL_HINT: &str = "no GPU adapter found. celray needs a Vulkan driver; \
+on Debian/Ubuntu install Mesa's CPU driver lavapipe with \
+`sudo apt-get install -y mesa-vulkan-drivers libvulkan1`";
+
+/// Every adapter the instance can see, with a one-line summary each.
+pub fn list_adapters() -> Vec<AdapterSummary> {
+    let instance = new_instance();
+    pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+        .iter()
+        .map(|a| AdapterSummary::from_info(&a.get_info()))
+        .collect()
+}
+
+fn type_rank(t: wgpu::DeviceType) -> u32 {
+    match t {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    }
+}
+
+fn backend_rank(b: wgpu::Backend) -> u32 {
+    // Vulkan first: it is what the tests and the measurements use.
+    match b {
+        wgpu::Backend::Vulkan => 0,
+        wgpu::Backend::Metal | wgpu::Backend::Dx12 => 1,
+        _ => 2,
+    }
+}
+
+/// Picks an adapter from `adapters` by `choice`, or says why none fits.
+fn pick(adapters: Vec<wgpu::Adapter>, choice: &AdapterChoice) -> Result<wgpu::Adapter, GpuError> {
+    if adapters.is_empty() {
+        return Err(GpuError::NoAdapter(INSTALL_HINT.to_string()));
+    }
+    let names: Vec<String> = adapters
+        .iter()
+        .map(|a| AdapterSummary::from_info(&a.get_info()).to_string())
+        .collect();
+    let mut candidates: Vec<wgpu::Adapter> = match choice {
+        AdapterChoice::Auto => adapters,
+        AdapterChoice::Software => adapters
+            .into_iter()
+            .filter(|a| a.get_info().device_type == wgpu::DeviceType::Cpu)
+            .collect(),
+        AdapterChoice::Named(part) => {
+            let part = part.to_lowercase();
+            adapters
+                .into_iter()
+                .filter(|a| a.get_info().name.to_lowercase().contains(&part))
+                .collect()
+        }
+    };
+    candidates.sort_by_key(|a| {
+        let info = a.get_info();
+        (type_rank(info.device_type), backend_rank(info.backend))
+    });
+    candidates.into_iter().next().ok_or_else(|| {
+        let wanted = match choice {
+            AdapterChoice::Software => "no CPU (software) adapter found; install lavapipe with \
+                 `sudo apt-get install -y mesa-vulkan-drivers libvulkan1`"
+                .to_string(),
+            AdapterChoice::Named(n) => format!("no adapter name contains {n:?}"),
+            AdapterChoice::Auto => INSTALL_HINT.to_string(),
+        };
+        GpuError::NoAdapter(format!(
+            "{wanted}. Adapters seen:\n  {}",
+            names.join("\n  ")
+        ))
+    })
+}
+
+impl Gpu {
+    /// A headless device (no window), chosen by `choice`.
+    pub fn new_headless(choice: &AdapterChoice) -> Result<Gpu, GpuError> {
+        let instance = new_instance();
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let adapter = pick(adapters, choice)?;
+        Self::from_adapter(instance, adapter)
+    }
+
+    /// A device on a given adapter (the window code picks one that can present).
+    pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
+        let summary = AdapterSummary::from_info(&adapter.get_info());
+        let wanted = wgpu::Features::TIMESTAMP_QUERY;
+        let required_features = adapter.features() & wanted;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("celray device"),
+            required_features,
+            required_limits: adapter.limits(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| GpuError::Device(format!("{summary}: {e}")))?;
+        let uncaptured = Arc::new(Mutex::new(Vec::new()));
+        let sink = uncaptured.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            log::error!("wgpu: {e}");
+            if let Ok(mut v) = sink.lock() {
+                v.push(e.to_string());
+            }
+        }));
+        log::info!("adapter: {summary}");
+        Ok(Gpu {
+            instance,
+            adapter,
+            device,
+            queue,
+            summary,
+            uncaptured,
+        })
+    }
+
+    /// Errors the uncaptured-error handler has seen since the last call.
+    pub fn take_errors(&self) -> Result<(), GpuError> {
+        let mut v = self
+            .uncaptured
+            .lock()
+            .map_err(|_| GpuError::Validation("error log poisoned".into()))?;
+        if v.is_empty() {
+            Ok(())
+        } else {
+            let all = v.join("\n");
+            v.clear();
+            Err(GpuError::Validation(all))
+        }
+    }
+
+    /// Runs `f` inside a validation error scope; a validation error becomes `Err`.
+    pub fn scoped<T>(&self, f: impl FnOnce() -> T) -> Result<T, GpuError> {
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let value = f();
+        match pollster::block_on(scope.pop()) {
+            Some(e) => Err(GpuError::Validation(e.to_string())),
+            None => Ok(value),
+        }
+    }
+
+    /// Blocks until all submitted work is done.
+    pub fn wait_idle(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Device(e.to_string()))
+    }
+}
+
+/// A headless instance on the primary backends (Vulkan, Metal, DX12), or on
+/// those named by `WGPU_BACKEND`.
+fn new_instance() -> wgpu::Instance {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    if std::env::var_os("WGPU_BACKEND").is_none() {
+        desc.backends = wgpu::Backends::PRIMARY;
+    }
+    wgpu::Instance::new(desc)
+}

@@ -1,0 +1,30 @@
+//! The GPU layer: device and adapter, shader composition, the Rust twins of
+//! WGSL structs, and readback. Imports wgpu; knows nothing of scenes.
+
+mod context;
+pub mod readback;
+pub mod shader;
+pub mod twins;
+
+pub use context::{list_adapters, AdapterChoice, AdapterSummary, Gpu};
+
+/// What can go wrong on the GPU side.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error("{0}")]
+    NoAdapter(String),
+    #[error("could not create a device: {0}")]
+    Device(String),
+    #[error("wgpu validation error: {0}")]
+    Validation(String),
+    #[error("shader: {0}")]
+    Shader(String),
+    #[error("readback failed: {0}")]
+    Readback(String),
+    #[error("{what} is {value}, over this adapter's limit of {limit}")]
+    Limit {
+        what: String,
+        value: u64,
+        limit: u64,
+    },
+}

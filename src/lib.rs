@@ -1,0 +1,12 @@
+//! celray: toon shading, ray-traced CSG and instancing, and accumulation-buffer
+//! effects, in real time on any Vulkan device (lavapipe included).
+//!
+//! Layers (see DESIGN.md): `scene` (CPU model and files) and `sampling` (pure
+//! math) at the bottom, `gpu` (wgpu plumbing), `render` (the passes),
+//! `capture` (headless images) and, behind the `app` feature, the window.
+
+pub mod capture;
+pub mod gpu;
+pub mod render;
+pub mod sampling;
+pub mod scene;

@@ -1,0 +1,139 @@
+//! Pass 3: add this sample's colour (with outlines) to the accumulator.
+
+use crate::gpu::twins::ACCUMULATE_WORKGROUP;
+use crate::gpu::{shader, Gpu, GpuError};
+use crate::render::raster::{read_only_storage_entry, uniform_entry};
+use crate::render::scene_buffers::SceneBuffers;
+use crate::render::targets::Targets;
+
+pub struct AccumulatePass {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    bind_group: Option<wgpu::BindGroup>,
+}
+
+fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Texture {
+            sample_type,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+impl AccumulatePass {
+    pub fn new(gpu: &Gpu) -> Result<AccumulatePass, GpuError> {
+        let module = shader::create_module(gpu, "accumulate.wgsl")?;
+        let c = wgpu::ShaderStages::COMPUTE;
+        let float = wgpu::TextureSampleType::Float { filterable: false };
+        gpu.scoped(|| {
+            let layout = gpu
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("accumulate bind group layout"),
+                    entries: &[
+                        uniform_entry(0, c),
+                        read_only_storage_entry(1, c),
+                        read_only_storage_entry(2, c),
+                        texture_entry(3, float),
+                        texture_entry(4, float),
+                        texture_entry(5, wgpu::TextureSampleType::Uint),
+                        wgpu::BindGroupLayoutEntry {
+                            binding: 6,
+                            visibility: c,
+                            ty: wgpu::BindingType::Buffer {
+                                ty: wgpu::BufferBindingType::Storage { read_only: false },
+                                has_dynamic_offset: false,
+                                min_binding_size: None,
+                            },
+                            count: None,
+                        },
+                    ],
+                });
+            let pipeline_layout =
+                gpu.device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("accumulate pipeline layout"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+            let pipeline = gpu
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("accumulate pipeline"),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some("main"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            AccumulatePass {
+                pipeline,
+                layout,
+                bind_group: None,
+            }
+        })
+    }
+
+    pub fn prepare(
+        &mut self,
+        gpu: &Gpu,
+        frame: &wgpu::Buffer,
+        scene: &SceneBuffers,
+        targets: &Targets,
+    ) {
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("accumulate bind group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: frame.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: scene.instances.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: scene.materials.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&view(&targets.color)),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(&view(&targets.normal_depth)),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::TextureView(&view(&targets.id)),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: targets.accum.as_entire_binding(),
+                },
+            ],
+        }));
+    }
+
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, targets: &Targets) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("accumulate pass"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
+        pass.dispatch_workgroups(
+            targets.width.div_ceil(ACCUMULATE_WORKGROUP),
+            targets.height.div_ceil(ACCUMULATE_WORKGROUP),
+            1,
+        );
+    }
+}

@@ -1,0 +1,67 @@
+//! Camera matrices for one sample: view, projection and sub-pixel jitter.
+
+use glam::{Mat4, Vec2, Vec3};
+
+use crate::scene::Camera;
+
+/// View and jittered projection of one sample, and the depth range used.
+#[derive(Debug, Clone, Copy)]
+pub struct SampleCamera {
+    pub view_from_world: Mat4,
+    pub clip_from_world: Mat4,
+    pub eye: Vec3,
+    pub forward: Vec3,
+}
+
+/// Near and far planes that enclose a scene with these world bounds.
+pub fn depth_range(camera: &Camera, bounds: (Vec3, Vec3)) -> (f32, f32) {
+    let centre = (bounds.0 + bounds.1) * 0.5;
+    let radius = ((bounds.1 - bounds.0) * 0.5).length().max(1e-3);
+    let far = (camera.eye - centre).length() + radius * 1.05 + 1e-3;
+    let near = ((camera.eye - centre).length() - radius * 1.05).max(far * 1e-4);
+    (near, far)
+}
+
+/// The camera for a sample whose sub-pixel position is `offset` in [0, 1)^2
+/// (0.5, 0.5 is the pixel centre) on an image of `size` pixels.
+///
+/// The rasterizer samples at pixel centres, so the image is shifted by
+/// (0.5 - offset) pixels: the point (x + offset) then lands on the centre.
+pub fn sample_camera(
+    camera: &Camera,
+    size: (u32, u32),
+    offset: Vec2,
+    depth: (f32, f32),
+) -> SampleCamera {
+    let (w, h) = (size.0 as f32, size.1 as f32);
+    let view = glam::camera::rh::view::look_at_mat4(camera.eye, camera.target, camera.up);
+    let proj = glam::camera::rh::proj::directx::perspective(
+        camera.fov_y_deg.to_radians(),
+        w / h,
+        depth.0,
+        depth.1,
+    );
+    let shift_px = Vec2::splat(0.5) - offset;
+    // Framebuffer x grows with NDC x, framebuffer y against NDC y.
+    let shift_ndc = Vec3::new(2.0 * shift_px.x / w, -2.0 * shift_px.y / h, 0.0);
+    SampleCamera {
+        view_from_world: view,
+        clip_from_world: Mat4::from_translation(shift_ndc) * proj * view,
+        eye: camera.eye,
+        forward: (camera.target - camera.eye).normalize(),
+    }
+}
+
+/// The world-space ray through image point `pixel` (in pixels, y down, so
+/// pixel centres are at i + 0.5): origin and unit direction. The CPU twin of
+/// the raster projection, used by tests and picking.
+pub fn primary_ray(camera: &Camera, size: (u32, u32), pixel: Vec2) -> (Vec3, Vec3) {
+    let (w, h) = (size.0 as f32, size.1 as f32);
+    let forward = (camera.target - camera.eye).normalize();
+    let right = forward.cross(camera.up).normalize();
+    let up = right.cross(forward);
+    let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
+    let ndc = Vec2::new(2.0 * pixel.x / w - 1.0, 1.0 - 2.0 * pixel.y / h);
+    let dir = forward + right * ndc.x * tan_half * (w / h) + up * ndc.y * tan_half;
+    (camera.eye, dir.normalize())
+}

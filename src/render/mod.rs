@@ -1,0 +1,274 @@
+//! The renderer: the passes of a frame, one sample at a time, averaged in
+//! the accumulation buffer. Knows scene, sampling and gpu; never winit or egui.
+//!
+//! Per sample k: (1) the raster pass shades every instance into the G-buffer
+//! with the projection jittered to sample k's sub-pixel position; (3) the
+//! accumulate pass adds the G-buffer colour, with outlines, to the float
+//! accumulator. (2, the trace pass, is not built yet.) On demand, (4) the
+//! resolve pass turns the average into a displayable image.
+
+pub mod accumulate;
+pub mod camera;
+pub mod raster;
+pub mod resolve;
+pub mod scene_buffers;
+pub mod settings;
+pub mod targets;
+
+use wgpu::util::DeviceExt;
+
+use crate::gpu::twins::FrameUniforms;
+use crate::gpu::{readback, Gpu, GpuError};
+use crate::sampling::pixel_offset;
+use crate::scene::Scene;
+use accumulate::AccumulatePass;
+use raster::RasterPass;
+use resolve::ResolvePass;
+use scene_buffers::SceneBuffers;
+pub use settings::{RenderSettings, ToneMap};
+use targets::Targets;
+
+pub struct Renderer {
+    scene: Scene,
+    settings: RenderSettings,
+    buffers: SceneBuffers,
+    targets: Targets,
+    frame: wgpu::Buffer,
+    raster: RasterPass,
+    accumulate: AccumulatePass,
+    capture_resolve: ResolvePass,
+    /// Samples in the accumulator; 0 after any change.
+    samples: u32,
+}
+
+impl Renderer {
+    /// Builds the passes and uploads `scene`.
+    pub fn new(gpu: &Gpu, scene: Scene, settings: RenderSettings) -> Result<Renderer, GpuError> {
+        let buffers = SceneBuffers::upload(gpu, &scene)?;
+        log::info!(
+            "scene: {} instances, {} draws, {} triangles",
+            scene.instances.len(),
+            buffers.draws.len(),
+            buffers.triangle_count
+        );
+        let targets = Targets::new(gpu, settings.width, settings.height)?;
+        let frame = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("frame uniforms"),
+                contents: bytemuck::bytes_of(&<FrameUniforms as bytemuck::Zeroable>::zeroed()),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+        let mut renderer = Renderer {
+            raster: RasterPass::new(gpu)?,
+            accumulate: AccumulatePass::new(gpu)?,
+            capture_resolve: ResolvePass::new(gpu, targets::CAPTURE_FORMAT)?,
+            scene,
+            settings,
+            buffers,
+            targets,
+            frame,
+            samples: 0,
+        };
+        renderer.bind(gpu);
+        Ok(renderer)
+    }
+
+    fn bind(&mut self, gpu: &Gpu) {
+        self.raster.prepare(gpu, &self.frame, &self.buffers);
+        self.accumulate
+            .prepare(gpu, &self.frame, &self.buffers, &self.targets);
+        self.capture_resolve
+            .prepare(gpu, &self.settings, &self.targets);
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    pub fn scene_buffers(&self) -> &SceneBuffers {
+        &self.buffers
+    }
+
+    /// Samples averaged so far.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// True once the accumulator holds `settings.spp` samples.
+    pub fn converged(&self) -> bool {
+        self.samples >= self.settings.spp
+    }
+
+    /// The one place accumulation restarts: every change calls this.
+    pub fn reset(&mut self) {
+        self.samples = 0;
+    }
+
+    /// Replaces the scene (uploading it again) and restarts accumulation.
+    pub fn set_scene(&mut self, gpu: &Gpu, scene: Scene) -> Result<(), GpuError> {
+        self.buffers = SceneBuffers::upload(gpu, &scene)?;
+        self.scene = scene;
+        self.bind(gpu);
+        self.reset();
+        Ok(())
+    }
+
+    /// Changes the camera only (no upload) and restarts accumulation.
+    pub fn set_camera(&mut self, camera: crate::scene::Camera) {
+        self.scene.camera = camera;
+        self.reset();
+    }
+
+    /// Applies new settings (new targets if the size changed) and restarts.
+    pub fn set_settings(&mut self, gpu: &Gpu, settings: RenderSettings) -> Result<(), GpuError> {
+        if (settings.width, settings.height) != (self.targets.width, self.targets.height) {
+            self.targets = Targets::new(gpu, settings.width, settings.height)?;
+        }
+        self.settings = settings;
+        self.bind(gpu);
+        self.reset();
+        Ok(())
+    }
+
+    /// The uniforms of sample `k`.
+    fn frame_uniforms(&self, k: u32) -> FrameUniforms {
+        let s = &self.settings;
+        let cam = &self.scene.camera;
+        let offset = pixel_offset(s.pattern, k, s.spp, s.seed);
+        let depth = camera::depth_range(cam, self.scene.bounds());
+        let sc = camera::sample_camera(cam, (s.width, s.height), offset, depth);
+        let max_outline = self
+            .scene
+            .materials
+            .iter()
+            .map(|m| m.outline_width_px)
+            .fold(0.0f32, f32::max)
+            .min(8.0);
+        FrameUniforms {
+            clip_from_world: sc.clip_from_world.to_cols_array_2d(),
+            eye_in_world: sc.eye.extend(1.0).to_array(),
+            view_forward: sc.forward.extend(0.0).to_array(),
+            ambient: self.scene.ambient.extend(0.0).to_array(),
+            background: self.scene.background.extend(1.0).to_array(),
+            size_px: [s.width, s.height],
+            light_count: self.buffers.light_count,
+            sample_index: k,
+            jitter_px: (offset - glam::Vec2::splat(0.5)).to_array(),
+            max_outline_px: max_outline,
+            seed: s.seed,
+        }
+    }
+
+    /// Renders one more sample into the accumulator (one dispatch per pass,
+    /// one sample per pixel: see the loop limit in STACK-NOTES.md).
+    pub fn render_sample(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
+        let uniforms = self.frame_uniforms(self.samples);
+        gpu.queue
+            .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("sample"),
+            });
+        self.raster.encode(
+            &mut encoder,
+            &self.targets,
+            &self.buffers,
+            uniforms.background[..3].try_into().unwrap_or([0.0; 3]),
+        );
+        self.accumulate.encode(&mut encoder, &self.targets);
+        gpu.queue.submit([encoder.finish()]);
+        self.samples += 1;
+        gpu.take_errors()
+    }
+
+    /// Renders samples until `settings.spp` are accumulated, calling
+    /// `progress(done, total)` after each.
+    pub fn render_to_convergence(
+        &mut self,
+        gpu: &Gpu,
+        mut progress: impl FnMut(u32, u32),
+    ) -> Result<(), GpuError> {
+        while !self.converged() {
+            self.render_sample(gpu)?;
+            progress(self.samples, self.settings.spp);
+        }
+        gpu.wait_idle()
+    }
+
+    /// Draws the resolved image into `view` of the format this renderer's
+    /// capture uses, or into a window surface via [`Renderer::new_resolve_pass`].
+    pub fn encode_resolve(
+        &self,
+        pass: &ResolvePass,
+        encoder: &mut wgpu::CommandEncoder,
+        view: &wgpu::TextureView,
+    ) {
+        pass.encode(encoder, view);
+    }
+
+    /// A resolve pass for targets of `format`, bound to this renderer.
+    pub fn new_resolve_pass(
+        &self,
+        gpu: &Gpu,
+        format: wgpu::TextureFormat,
+    ) -> Result<ResolvePass, GpuError> {
+        let mut pass = ResolvePass::new(gpu, format)?;
+        pass.prepare(gpu, &self.settings, &self.targets);
+        Ok(pass)
+    }
+
+    /// The resolved image as sRGB-encoded RGBA8, row-major, top row first.
+    pub fn read_srgb8(&self, gpu: &Gpu) -> Result<Vec<u8>, GpuError> {
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("capture resolve"),
+            });
+        let view = self.targets.capture.create_view(&Default::default());
+        self.capture_resolve.encode(&mut encoder, &view);
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = readback::read_texture(gpu, &self.targets.capture, 4)?;
+        gpu.take_errors()?;
+        Ok(bytes)
+    }
+
+    /// The accumulated average in linear RGBA f32 (before tone mapping).
+    pub fn read_linear(&self, gpu: &Gpu) -> Result<Vec<f32>, GpuError> {
+        let size = self.targets.accum.size();
+        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("accumulation readback"),
+            size,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("accumulation copy"),
+            });
+        encoder.copy_buffer_to_buffer(&self.targets.accum, 0, &staging, 0, size);
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = readback::read_buffer(gpu, &staging)?;
+        let sums: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        Ok(sums
+            .iter()
+            .flat_map(|s| {
+                let n = s[3].max(1.0);
+                [s[0] / n, s[1] / n, s[2] / n, 1.0]
+            })
+            .collect())
+    }
+
+    /// The G-buffer's id target: 0 for background, else GPU instance + 1
+    /// (see [`SceneBuffers::instance_order`]). For tests and picking.
+    pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
+        let bytes = readback::read_texture(gpu, &self.targets.id, 4)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+}

@@ -1,0 +1,223 @@
+//! Pass 1: rasterize every instance into the G-buffer, shaded.
+
+use crate::gpu::twins::Vertex;
+use crate::gpu::{shader, Gpu, GpuError};
+use crate::render::scene_buffers::SceneBuffers;
+use crate::render::targets::{Targets, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
+
+pub struct RasterPass {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    bind_group: Option<wgpu::BindGroup>,
+}
+
+fn storage_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A uniform-buffer layout entry.
+pub fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A read-only storage-buffer layout entry.
+pub fn read_only_storage_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    storage_entry(binding, visibility)
+}
+
+impl RasterPass {
+    pub fn new(gpu: &Gpu) -> Result<RasterPass, GpuError> {
+        let module = shader::create_module(gpu, "raster.wgsl")?;
+        let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+        gpu.scoped(|| {
+            let layout = gpu
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("raster bind group layout"),
+                    entries: &[
+                        uniform_entry(0, vf),
+                        storage_entry(1, vf),
+                        storage_entry(2, wgpu::ShaderStages::FRAGMENT),
+                        storage_entry(3, wgpu::ShaderStages::FRAGMENT),
+                    ],
+                });
+            let pipeline_layout =
+                gpu.device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("raster pipeline layout"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+            let target = |format| {
+                Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })
+            };
+            let pipeline = gpu
+                .device
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("raster pipeline"),
+                    layout: Some(&pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(Vertex::LAYOUT)],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        topology: wgpu::PrimitiveTopology::TriangleList,
+                        front_face: wgpu::FrontFace::Ccw,
+                        // No culling: planes are two-sided and mirrored instances flip winding.
+                        cull_mode: None,
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: DEPTH_FORMAT,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_main"),
+                        compilation_options: Default::default(),
+                        targets: &[
+                            target(COLOR_FORMAT),
+                            target(NORMAL_DEPTH_FORMAT),
+                            target(ID_FORMAT),
+                        ],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                });
+            RasterPass {
+                pipeline,
+                layout,
+                bind_group: None,
+            }
+        })
+    }
+
+    /// Binds the frame uniforms and the scene's buffers.
+    pub fn prepare(&mut self, gpu: &Gpu, frame: &wgpu::Buffer, scene: &SceneBuffers) {
+        self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("raster bind group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: frame.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: scene.instances.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: scene.materials.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: scene.lights.as_entire_binding(),
+                },
+            ],
+        }));
+    }
+
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        targets: &Targets,
+        scene: &SceneBuffers,
+        background: [f32; 3],
+    ) {
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (color, normal_depth, id, depth) = (
+            view(&targets.color),
+            view(&targets.normal_depth),
+            view(&targets.id),
+            view(&targets.depth),
+        );
+        let clear = |c: wgpu::Color| wgpu::Operations {
+            load: wgpu::LoadOp::Clear(c),
+            store: wgpu::StoreOp::Store,
+        };
+        let attachment = |v, c| {
+            Some(wgpu::RenderPassColorAttachment {
+                view: v,
+                depth_slice: None,
+                resolve_target: None,
+                ops: clear(c),
+            })
+        };
+        let bg = wgpu::Color {
+            r: f64::from(background[0]),
+            g: f64::from(background[1]),
+            b: f64::from(background[2]),
+            a: 1.0,
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("raster pass"),
+            color_attachments: &[
+                attachment(&color, bg),
+                attachment(
+                    &normal_depth,
+                    wgpu::Color {
+                        r: 0.0,
+                        g: 0.0,
+                        b: 0.0,
+                        a: 65504.0,
+                    },
+                ),
+                attachment(&id, wgpu::Color::TRANSPARENT),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
+        pass.set_vertex_buffer(0, scene.vertices.slice(..));
+        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+        for d in &scene.draws {
+            pass.draw_indexed(
+                d.first_index..d.first_index + d.index_count,
+                d.base_vertex,
+                d.instances.clone(),
+            );
+        }
+    }
+}

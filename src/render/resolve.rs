@@ -1,0 +1,128 @@
+//! Pass 4: the accumulator's average, tone mapped, into a colour target
+//! (the window's surface or the capture texture).
+
+use wgpu::util::DeviceExt;
+
+use crate::gpu::{shader, Gpu, GpuError};
+use crate::render::raster::{read_only_storage_entry, uniform_entry};
+use crate::render::settings::RenderSettings;
+use crate::render::targets::Targets;
+
+pub struct ResolvePass {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    format: wgpu::TextureFormat,
+    bind_group: Option<wgpu::BindGroup>,
+}
+
+impl ResolvePass {
+    /// A resolve pass drawing into targets of `format`.
+    pub fn new(gpu: &Gpu, format: wgpu::TextureFormat) -> Result<ResolvePass, GpuError> {
+        let module = shader::create_module(gpu, "resolve.wgsl")?;
+        let f = wgpu::ShaderStages::FRAGMENT;
+        gpu.scoped(|| {
+            let layout = gpu
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("resolve bind group layout"),
+                    entries: &[uniform_entry(0, f), read_only_storage_entry(1, f)],
+                });
+            let pipeline_layout =
+                gpu.device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("resolve pipeline layout"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+            let pipeline = gpu
+                .device
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("resolve pipeline"),
+                    layout: Some(&pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    primitive: Default::default(),
+                    depth_stencil: None,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_main"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                });
+            let params = gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("resolve uniforms"),
+                    contents: bytemuck::bytes_of(
+                        &RenderSettings::default().to_gpu(format.is_srgb()),
+                    ),
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                });
+            ResolvePass {
+                pipeline,
+                layout,
+                params,
+                format,
+                bind_group: None,
+            }
+        })
+    }
+
+    pub fn prepare(&mut self, gpu: &Gpu, settings: &RenderSettings, targets: &Targets) {
+        gpu.queue.write_buffer(
+            &self.params,
+            0,
+            bytemuck::bytes_of(&settings.to_gpu(self.format.is_srgb())),
+        );
+        self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("resolve bind group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: targets.accum.as_entire_binding(),
+                },
+            ],
+        }));
+    }
+
+    /// Draws the resolved image into `view` (which must be the accumulator's size).
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, view: &wgpu::TextureView) {
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("resolve pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
+        pass.draw(0..3, 0..1);
+    }
+}

@@ -1,0 +1,256 @@
+//! The scene on the GPU: one vertex and index buffer holding every base
+//! shape's triangles, per-instance matrices sorted by shape (so each shape is
+//! one instanced draw), materials and lights.
+
+use glam::Mat4;
+use wgpu::util::DeviceExt;
+
+use crate::gpu::twins::{
+    GpuInstance, GpuLight, GpuMaterial, Vertex, MAX_TOON_BANDS, SHADING_BLINN_PHONG, SHADING_TOON,
+};
+use crate::gpu::{Gpu, GpuError};
+use crate::scene::{tessellate, Light, Material, Scene, ShadingModel, Shape};
+
+/// One instanced draw: a base shape's index range and its instances.
+#[derive(Debug, Clone)]
+pub struct Draw {
+    pub shape: usize,
+    pub first_index: u32,
+    pub index_count: u32,
+    pub base_vertex: i32,
+    pub instances: std::ops::Range<u32>,
+}
+
+pub struct SceneBuffers {
+    pub vertices: wgpu::Buffer,
+    pub indices: wgpu::Buffer,
+    pub instances: wgpu::Buffer,
+    pub materials: wgpu::Buffer,
+    pub lights: wgpu::Buffer,
+    pub light_count: u32,
+    pub draws: Vec<Draw>,
+    /// `instance_order[i]` is the scene instance drawn as GPU instance i.
+    pub instance_order: Vec<usize>,
+    pub triangle_count: u64,
+}
+
+/// The GPU form of a material.
+pub fn material_to_gpu(m: &Material) -> GpuMaterial {
+    let mut g = GpuMaterial {
+        base_color: m.base_color.to_array(),
+        shininess: m.shininess,
+        specular_color: m.specular_color.to_array(),
+        specular_threshold: 0.5,
+        outline_color: m.outline_color.to_array(),
+        outline_width_px: m.outline_width_px,
+        rim_color: [0.0; 3],
+        rim_threshold: 2.0,
+        model: SHADING_BLINN_PHONG,
+        band_count: 1,
+        reflectivity: m.reflectivity,
+        roughness: m.roughness,
+        thresholds: [[0.0; 4]; 4],
+    };
+    if let ShadingModel::Toon(toon) = &m.model {
+        g.model = SHADING_TOON;
+        g.band_count = toon.bands().min(MAX_TOON_BANDS);
+        g.specular_threshold = toon.specular_threshold;
+        for (i, t) in toon
+            .thresholds
+            .iter()
+            .take(MAX_TOON_BANDS as usize - 1)
+            .enumerate()
+        {
+            g.thresholds[i / 4][i % 4] = *t;
+        }
+        if let Some(rim) = &toon.rim {
+            g.rim_color = rim.color.to_array();
+            g.rim_threshold = rim.threshold;
+        }
+    }
+    g
+}
+
+/// The GPU form of a light.
+pub fn light_to_gpu(light: &Light) -> GpuLight {
+    match light {
+        Light::Directional {
+            direction,
+            color,
+            intensity,
+            cast_shadows,
+        } => GpuLight {
+            position_or_direction: direction.normalize().extend(0.0).to_array(),
+            radiance: (*color * *intensity)
+                .extend(f32::from(u8::from(*cast_shadows)))
+                .to_array(),
+        },
+        Light::Point {
+            position,
+            color,
+            intensity,
+            cast_shadows,
+        } => GpuLight {
+            position_or_direction: position.extend(1.0).to_array(),
+            radiance: (*color * *intensity)
+                .extend(f32::from(u8::from(*cast_shadows)))
+                .to_array(),
+        },
+    }
+}
+
+/// The GPU form of an instance's transform.
+pub fn instance_to_gpu(world_from_object: Mat4, material: usize, shape: usize) -> GpuInstance {
+    GpuInstance {
+        world_from_object: world_from_object.to_cols_array_2d(),
+        normal_from_object: world_from_object.inverse().transpose().to_cols_array_2d(),
+        material: material as u32,
+        shape: shape as u32,
+        mirrored: u32::from(world_from_object.determinant() < 0.0),
+        _pad: 0,
+    }
+}
+
+fn check_limit(what: &str, value: u64, limit: u64) -> Result<(), GpuError> {
+    if value > limit {
+        Err(GpuError::Limit {
+            what: what.to_string(),
+            value,
+            limit,
+        })
+    } else {
+        Ok(())
+    }
+}
+
+fn storage_buffer<T: bytemuck::Pod>(gpu: &Gpu, label: &str, data: &[T]) -> wgpu::Buffer {
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::cast_slice(data),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        })
+}
+
+impl SceneBuffers {
+    /// Uploads `scene`. Sizes over the adapter's limits are refused with a
+    /// message naming the limit.
+    pub fn upload(gpu: &Gpu, scene: &Scene) -> Result<SceneBuffers, GpuError> {
+        let limits = gpu.device.limits();
+        let binding_limit = u64::from(limits.max_storage_buffer_binding_size);
+
+        // Instances sorted by base shape: each shape's instances are one range.
+        let mut order: Vec<usize> = (0..scene.instances.len()).collect();
+        order.sort_by_key(|&i| scene.instances[i].shape);
+        let instances: Vec<GpuInstance> = order
+            .iter()
+            .map(|&i| {
+                let inst = &scene.instances[i];
+                instance_to_gpu(inst.world_from_object, inst.material, inst.shape)
+            })
+            .collect();
+        check_limit(
+            "instance buffer (bytes)",
+            (instances.len() * std::mem::size_of::<GpuInstance>()) as u64,
+            binding_limit,
+        )?;
+
+        let mut vertices: Vec<Vertex> = Vec::new();
+        let mut indices: Vec<u32> = Vec::new();
+        let mut draws = Vec::new();
+        let mut triangle_count = 0u64;
+        for (shape_id, shape) in scene.shapes.iter().enumerate() {
+            let first = order.partition_point(|&i| scene.instances[i].shape < shape_id) as u32;
+            let end = order.partition_point(|&i| scene.instances[i].shape <= shape_id) as u32;
+            if first == end {
+                continue; // a shape nobody instances costs nothing
+            }
+            let tessellated;
+            let mesh = match shape {
+                Shape::Mesh(mesh) => mesh,
+                other => {
+                    tessellated = tessellate(other);
+                    &tessellated
+                }
+            };
+            draws.push(Draw {
+                shape: shape_id,
+                first_index: indices.len() as u32,
+                index_count: mesh.indices.len() as u32,
+                base_vertex: vertices.len() as i32,
+                instances: first..end,
+            });
+            triangle_count += (mesh.indices.len() / 3) as u64 * u64::from(end - first);
+            vertices.extend(
+                mesh.positions
+                    .iter()
+                    .zip(&mesh.normals)
+                    .map(|(p, n)| Vertex {
+                        position: p.to_array(),
+                        normal: n.to_array(),
+                    }),
+            );
+            indices.extend_from_slice(&mesh.indices);
+        }
+        check_limit(
+            "vertex buffer (bytes)",
+            (vertices.len() * std::mem::size_of::<Vertex>()) as u64,
+            limits.max_buffer_size,
+        )?;
+        check_limit(
+            "index buffer (bytes)",
+            indices.len() as u64 * 4,
+            limits.max_buffer_size,
+        )?;
+        // Zero-sized buffers cannot be bound: keep one element in each.
+        if vertices.is_empty() {
+            vertices.push(Vertex {
+                position: [0.0; 3],
+                normal: [0.0, 1.0, 0.0],
+            });
+            indices.extend([0, 0, 0]);
+        }
+        let mut gpu_instances = instances;
+        if gpu_instances.is_empty() {
+            gpu_instances.push(instance_to_gpu(Mat4::IDENTITY, 0, 0));
+        }
+        let mut materials: Vec<GpuMaterial> = scene.materials.iter().map(material_to_gpu).collect();
+        if materials.is_empty() {
+            materials.push(bytemuck::Zeroable::zeroed());
+        }
+        let mut lights: Vec<GpuLight> = scene.lights.iter().map(light_to_gpu).collect();
+        let light_count = lights.len() as u32;
+        if lights.is_empty() {
+            lights.push(bytemuck::Zeroable::zeroed());
+        }
+        check_limit(
+            "material buffer (bytes)",
+            (materials.len() * std::mem::size_of::<GpuMaterial>()) as u64,
+            binding_limit,
+        )?;
+
+        gpu.scoped(|| SceneBuffers {
+            vertices: gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("scene vertices"),
+                    contents: bytemuck::cast_slice(&vertices),
+                    usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+                }),
+            indices: gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("scene indices"),
+                    contents: bytemuck::cast_slice(&indices),
+                    usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+                }),
+            instances: storage_buffer(gpu, "scene instances", &gpu_instances),
+            materials: storage_buffer(gpu, "scene materials", &materials),
+            lights: storage_buffer(gpu, "scene lights", &lights),
+            light_count,
+            draws,
+            instance_order: order,
+            triangle_count,
+        })
+    }
+}

@@ -1,0 +1,125 @@
+//! Per-image GPU storage: the G-buffer the raster pass writes, the float
+//! accumulation buffer, and an 8-bit sRGB target for capture.
+
+use crate::gpu::{Gpu, GpuError};
+
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+pub const NORMAL_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+pub struct Targets {
+    pub width: u32,
+    pub height: u32,
+    pub color: wgpu::Texture,
+    pub normal_depth: wgpu::Texture,
+    pub id: wgpu::Texture,
+    pub depth: wgpu::Texture,
+    /// One vec4<f32> per pixel: summed colour in rgb, sample count in w.
+    pub accum: wgpu::Buffer,
+    pub capture: wgpu::Texture,
+}
+
+fn texture(
+    gpu: &Gpu,
+    label: &str,
+    w: u32,
+    h: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+impl Targets {
+    /// Targets for a `width` x `height` image; sizes the adapter cannot hold
+    /// are refused with the limit named.
+    pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Targets, GpuError> {
+        let limits = gpu.device.limits();
+        let max_dim = limits.max_texture_dimension_2d;
+        if width == 0 || height == 0 {
+            return Err(GpuError::Limit {
+                what: "image size 0".into(),
+                value: 0,
+                limit: 0,
+            });
+        }
+        for (what, v) in [("image width", width), ("image height", height)] {
+            if v > max_dim {
+                return Err(GpuError::Limit {
+                    what: what.into(),
+                    value: u64::from(v),
+                    limit: u64::from(max_dim),
+                });
+            }
+        }
+        let accum_bytes = u64::from(width) * u64::from(height) * 16;
+        let accum_limit =
+            u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+        if accum_bytes > accum_limit {
+            return Err(GpuError::Limit {
+                what: format!("accumulation buffer for {width}x{height} (bytes)"),
+                value: accum_bytes,
+                limit: accum_limit,
+            });
+        }
+        let attach = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        gpu.scoped(|| Targets {
+            width,
+            height,
+            color: texture(gpu, "gbuffer colour", width, height, COLOR_FORMAT, attach),
+            normal_depth: texture(
+                gpu,
+                "gbuffer normal+depth",
+                width,
+                height,
+                NORMAL_DEPTH_FORMAT,
+                attach,
+            ),
+            id: texture(
+                gpu,
+                "gbuffer id",
+                width,
+                height,
+                ID_FORMAT,
+                attach | wgpu::TextureUsages::COPY_SRC,
+            ),
+            depth: texture(
+                gpu,
+                "depth",
+                width,
+                height,
+                DEPTH_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT,
+            ),
+            accum: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("accumulation"),
+                size: accum_bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            capture: texture(
+                gpu,
+                "capture",
+                width,
+                height,
+                CAPTURE_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            ),
+        })
+    }
+}

@@ -1,0 +1,171 @@
+//! Sample patterns and the sample schedule: sample k of a frame gets a
+//! sub-pixel offset that depends only on (k, sample count, seed), so the same
+//! settings always give the same image. Pure math, no GPU.
+
+use glam::Vec2;
+
+/// How sub-pixel positions are spread over a pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PixelPattern {
+    /// Cell centres of an n x n grid (n = ceil(sqrt(spp))).
+    Regular,
+    /// Independent uniform points.
+    Random,
+    /// One uniform point in each cell of the n x n grid (stratified).
+    #[default]
+    Jittered,
+    /// The Halton (2, 3) sequence, shifted by a seed-dependent rotation.
+    Halton,
+}
+
+impl PixelPattern {
+    pub const ALL: [PixelPattern; 4] = [
+        PixelPattern::Regular,
+        PixelPattern::Random,
+        PixelPattern::Jittered,
+        PixelPattern::Halton,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelPattern::Regular => "regular",
+            PixelPattern::Random => "random",
+            PixelPattern::Jittered => "jittered",
+            PixelPattern::Halton => "halton",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<PixelPattern> {
+        Self::ALL.into_iter().find(|p| p.name() == text)
+    }
+}
+
+/// A 32-bit integer hash (Jarkko Lempiäinen's "lowbias32" by Chris Wellons).
+pub fn hash_u32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    x
+}
+
+/// A uniform number in [0, 1) from three integers.
+pub fn uniform(a: u32, b: u32, c: u32) -> f32 {
+    let h = hash_u32(a ^ hash_u32(b.wrapping_add(0x9e37_79b9) ^ hash_u32(c)));
+    (h >> 8) as f32 / (1u32 << 24) as f32
+}
+
+/// The radical inverse of `i` in `base` (van der Corput).
+pub fn radical_inverse(mut i: u32, base: u32) -> f32 {
+    let inv = 1.0 / base as f64;
+    let mut scale = inv;
+    let mut r = 0.0f64;
+    while i > 0 {
+        r += (i % base) as f64 * scale;
+        i /= base;
+        scale *= inv;
+    }
+    r as f32
+}
+
+/// Sub-pixel offset in [0, 1)^2 of sample `k` of `spp` for `seed`.
+pub fn pixel_offset(pattern: PixelPattern, k: u32, spp: u32, seed: u32) -> Vec2 {
+    let n = (spp.max(1) as f32).sqrt().ceil() as u32;
+    let cell = Vec2::new((k % n) as f32, ((k / n) % n) as f32);
+    match pattern {
+        PixelPattern::Regular => (cell + Vec2::splat(0.5)) / n as f32,
+        PixelPattern::Random => Vec2::new(uniform(k, seed, 1), uniform(k, seed, 2)),
+        PixelPattern::Jittered => {
+            // The cells are visited in a seed-shuffled order so that a
+            // partial count (spp not a square) still spreads over the pixel.
+            let cells = n * n;
+            let j = shuffled_index(k % cells, cells, seed);
+            let cell = Vec2::new((j % n) as f32, (j / n) as f32);
+            (cell + Vec2::new(uniform(k, seed, 3), uniform(k, seed, 4))) / n as f32
+        }
+        PixelPattern::Halton => {
+            let shift = Vec2::new(uniform(seed, 0, 5), uniform(seed, 0, 6));
+            let p = Vec2::new(radical_inverse(k + 1, 2), radical_inverse(k + 1, 3)) + shift;
+            p - p.floor()
+        }
+    }
+}
+
+/// A bijection of 0..n chosen by `seed` (cycle walking over a hashed
+/// power-of-two domain), used to order the strata of the jittered pattern.
+fn shuffled_index(i: u32, n: u32, seed: u32) -> u32 {
+    let bits = 32 - (n.max(2) - 1).leading_zeros();
+    let mask = (1u32 << bits) - 1;
+    let mut x = i;
+    loop {
+        // An invertible mix on `bits` bits: xor-shift and odd multiply.
+        for round in 0..3u32 {
+            x ^= hash_u32(seed ^ round) & mask;
+            x = x.wrapping_mul(hash_u32(seed.wrapping_add(round)) | 1) & mask;
+            x ^= x >> (bits / 2).max(1);
+        }
+        if x < n {
+            return x;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regular_is_cell_centres() {
+        assert_eq!(
+            pixel_offset(PixelPattern::Regular, 0, 1, 7),
+            Vec2::splat(0.5)
+        );
+        assert_eq!(
+            pixel_offset(PixelPattern::Regular, 3, 4, 7),
+            Vec2::splat(0.75)
+        );
+    }
+
+    #[test]
+    fn jittered_puts_one_point_in_each_cell() {
+        for seed in 0..20 {
+            let n = 5;
+            let mut seen = vec![false; n * n];
+            for k in 0..(n * n) as u32 {
+                let p = pixel_offset(PixelPattern::Jittered, k, (n * n) as u32, seed);
+                assert!(p.x >= 0.0 && p.x < 1.0 && p.y >= 0.0 && p.y < 1.0);
+                let c = (p.y * n as f32) as usize * n + (p.x * n as f32) as usize;
+                assert!(!seen[c], "cell {c} twice for seed {seed}");
+                seen[c] = true;
+            }
+        }
+    }
+
+    #[test]
+    fn shuffle_is_a_permutation() {
+        for n in [1u32, 2, 3, 7, 16, 100] {
+            let mut v: Vec<u32> = (0..n).map(|i| shuffled_index(i, n, 42)).collect();
+            v.sort();
+            assert_eq!(v, (0..n).collect::<Vec<_>>());
+        }
+    }
+
+    #[test]
+    fn random_mean_is_a_half() {
+        // Mean of 4096 U(0,1) draws: standard error 1/sqrt(12*4096) = 0.0045;
+        // 0.02 is more than four standard errors.
+        let m: f32 = (0..4096)
+            .map(|k| pixel_offset(PixelPattern::Random, k, 4096, 3).x)
+            .sum::<f32>()
+            / 4096.0;
+        assert!((m - 0.5).abs() < 0.02, "mean {m}");
+    }
+
+    #[test]
+    fn radical_inverse_base_two() {
+        assert_eq!(radical_inverse(1, 2), 0.5);
+        assert_eq!(radical_inverse(3, 2), 0.75);
+        assert!((radical_inverse(1, 3) - 1.0 / 3.0).abs() < 1e-7);
+    }
+}

@@ -1,0 +1,323 @@
+//! Triangle meshes and the OBJ / glTF loaders.
+
+use std::collections::HashMap;
+use std::io::Cursor;
+use std::path::Path;
+
+use glam::{Mat3, Mat4, Vec3};
+
+use super::SceneError;
+
+/// An indexed triangle mesh in object space.
+///
+/// Front faces are counter-clockwise seen from outside; `normals` has one
+/// unit normal per position.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Unit vertex normals, `normals.len() == positions.len()`.
+    pub normals: Vec<Vec3>,
+    /// Three indices into `positions` per triangle.
+    pub indices: Vec<u32>,
+    /// Where the mesh came from (a file path, or e.g. `"tessellated sphere"`).
+    pub source: String,
+}
+
+/// Nodes nested deeper than this in a glTF file are rejected (this also
+/// stops cyclic node graphs).
+const MAX_GLTF_DEPTH: usize = 64;
+
+impl Mesh {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// Axis-aligned bounding box `(min, max)` of the positions;
+    /// `(Vec3::ZERO, Vec3::ZERO)` for an empty mesh.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        if self.positions.is_empty() {
+            return (Vec3::ZERO, Vec3::ZERO);
+        }
+        self.positions.iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+    }
+
+    /// Checks the invariants documented on the fields.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.indices.is_empty() {
+            return Err("mesh has no triangles".into());
+        }
+        if self.indices.len() % 3 != 0 {
+            return Err(format!(
+                "mesh index count {} is not a multiple of 3",
+                self.indices.len()
+            ));
+        }
+        if self.normals.len() != self.positions.len() {
+            return Err(format!(
+                "mesh has {} normals for {} positions",
+                self.normals.len(),
+                self.positions.len()
+            ));
+        }
+        if let Some(&bad) = self
+            .indices
+            .iter()
+            .find(|&&i| i as usize >= self.positions.len())
+        {
+            return Err(format!(
+                "mesh index {bad} is out of range ({} vertices)",
+                self.positions.len()
+            ));
+        }
+        if !self.positions.iter().all(|p| p.is_finite()) {
+            return Err("mesh has a non-finite position".into());
+        }
+        Ok(())
+    }
+
+    /// Loads a mesh file: Wavefront OBJ (`.obj`) or glTF 2.0
+    /// (`.gltf` / `.glb`), chosen by extension.
+    ///
+    /// All objects / primitives of the file are merged into one mesh.
+    /// Missing normals are computed with [`smooth_normals`].
+    pub fn load(path: &Path) -> Result<Mesh, SceneError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("obj") => {
+                let bytes = std::fs::read(path).map_err(|e| SceneError::MeshParse {
+                    path: path.to_path_buf(),
+                    reason: e.to_string(),
+                })?;
+                Mesh::from_obj_bytes(&bytes, &path.display().to_string())
+            }
+            Some("gltf") | Some("glb") => Mesh::from_gltf_file(path),
+            _ => Err(SceneError::MeshParse {
+                path: path.to_path_buf(),
+                reason: "unsupported mesh format; expected a .obj, .gltf or .glb file".into(),
+            }),
+        }
+    }
+
+    /// Parses Wavefront OBJ text. Faces are triangulated and all models of
+    /// the file are merged; material libraries are ignored. `source` is
+    /// used in error messages and stored in [`Mesh::source`].
+    pub fn from_obj_bytes(bytes: &[u8], source: &str) -> Result<Mesh, SceneError> {
+        let parse_error = |reason: String| SceneError::MeshParse {
+            path: source.into(),
+            reason,
+        };
+        let options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: true,
+            ..Default::default()
+        };
+        let (models, _materials) = tobj::load_obj_buf(&mut Cursor::new(bytes), &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .map_err(|e| parse_error(format!("invalid OBJ: {e}")))?;
+
+        let mut mesh = Mesh {
+            source: source.to_string(),
+            ..Default::default()
+        };
+        let mut all_have_normals = true;
+        for model in &models {
+            let m = &model.mesh;
+            let base = u32::try_from(mesh.positions.len())
+                .map_err(|_| parse_error("too many vertices".into()))?;
+            let count = m.positions.len() / 3;
+            mesh.positions.extend(
+                m.positions
+                    .chunks_exact(3)
+                    .map(|p| Vec3::new(p[0], p[1], p[2])),
+            );
+            if m.normals.len() == m.positions.len() {
+                mesh.normals.extend(
+                    m.normals
+                        .chunks_exact(3)
+                        .map(|n| Vec3::new(n[0], n[1], n[2])),
+                );
+            } else {
+                all_have_normals = false;
+                mesh.normals.extend(std::iter::repeat_n(Vec3::ZERO, count));
+            }
+            for &i in &m.indices {
+                if i as usize >= count {
+                    return Err(parse_error(format!(
+                        "face index {} out of range in object \"{}\"",
+                        i + 1,
+                        model.name
+                    )));
+                }
+                mesh.indices.push(base + i);
+            }
+        }
+        if !all_have_normals {
+            mesh.normals = smooth_normals(&mesh.positions, &mesh.indices);
+        }
+        finish(mesh)
+    }
+
+    /// Loads a glTF 2.0 file (`.gltf` with external or `data:` buffers, or
+    /// `.glb`). Only buffers are read; images are ignored, so missing
+    /// textures do not matter.
+    ///
+    /// The node tree of the default scene (or the first scene) is walked,
+    /// node transforms are applied (normals with the inverse transpose) and
+    /// all primitives with mode `Triangles` are merged into one mesh.
+    pub fn from_gltf_file(path: &Path) -> Result<Mesh, SceneError> {
+        let parse_error = |reason: String| SceneError::MeshParse {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let gltf::Gltf { document, blob } =
+            gltf::Gltf::open(path).map_err(|e| parse_error(format!("invalid glTF: {e}")))?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let buffers = gltf::import_buffers(&document, Some(base), blob)
+            .map_err(|e| parse_error(format!("cannot read glTF buffers: {e}")))?;
+
+        let scene = document
+            .default_scene()
+            .or_else(|| document.scenes().next())
+            .ok_or_else(|| parse_error("the file has no scene".into()))?;
+
+        let mut mesh = Mesh {
+            source: path.display().to_string(),
+            ..Default::default()
+        };
+        let mut stack: Vec<(gltf::Node, Mat4, usize)> =
+            scene.nodes().map(|n| (n, Mat4::IDENTITY, 0)).collect();
+        while let Some((node, parent, depth)) = stack.pop() {
+            if depth > MAX_GLTF_DEPTH {
+                return Err(parse_error(format!(
+                    "node hierarchy deeper than {MAX_GLTF_DEPTH} levels (cyclic?)"
+                )));
+            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            if let Some(gmesh) = node.mesh() {
+                for primitive in gmesh.primitives() {
+                    if primitive.mode() == gltf::mesh::Mode::Triangles {
+                        append_gltf_primitive(&mut mesh, &primitive, &buffers, world)
+                            .map_err(&parse_error)?;
+                    }
+                }
+            }
+            stack.extend(node.children().map(|c| (c, world, depth + 1)));
+        }
+        finish(mesh)
+    }
+}
+
+/// Adds one glTF primitive, transformed by `world`, to `mesh`.
+fn append_gltf_primitive(
+    mesh: &mut Mesh,
+    primitive: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    world: Mat4,
+) -> Result<(), String> {
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
+    let positions: Vec<Vec3> = reader
+        .read_positions()
+        .ok_or("a triangle primitive has no POSITION attribute")?
+        .map(|p| world.transform_point3(Vec3::from(p)))
+        .collect();
+    let count = u32::try_from(positions.len()).map_err(|_| "too many vertices")?;
+    let mut indices: Vec<u32> = match reader.read_indices() {
+        Some(ix) => ix.into_u32().collect(),
+        None => (0..count).collect(),
+    };
+    indices.truncate(indices.len() / 3 * 3);
+    if let Some(&bad) = indices.iter().find(|&&i| i >= count) {
+        return Err(format!(
+            "index {bad} out of range in a primitive with {count} vertices"
+        ));
+    }
+    // A mirroring transform flips the winding; swap two corners to keep
+    // front faces counter-clockwise.
+    if world.determinant() < 0.0 {
+        for tri in indices.chunks_exact_mut(3) {
+            tri.swap(1, 2);
+        }
+    }
+    let normals: Vec<Vec3> = match reader.read_normals() {
+        Some(ns) => {
+            let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+            ns.map(|n| (normal_matrix * Vec3::from(n)).normalize_or(Vec3::Y))
+                .collect()
+        }
+        None => smooth_normals(&positions, &indices),
+    };
+    if normals.len() != positions.len() {
+        return Err("NORMAL and POSITION attributes have different lengths".into());
+    }
+    let base = u32::try_from(mesh.positions.len()).map_err(|_| "too many vertices")?;
+    mesh.positions.extend(positions);
+    mesh.normals.extend(normals);
+    mesh.indices.extend(indices.iter().map(|i| base + i));
+    Ok(())
+}
+
+/// Final checks shared by the loaders.
+fn finish(mesh: Mesh) -> Result<Mesh, SceneError> {
+    match mesh.validate() {
+        Ok(()) => {
+            log::debug!(
+                "loaded mesh {}: {} vertices, {} triangles",
+                mesh.source,
+                mesh.positions.len(),
+                mesh.triangle_count()
+            );
+            Ok(mesh)
+        }
+        Err(reason) => Err(SceneError::MeshParse {
+            path: mesh.source.clone().into(),
+            reason,
+        }),
+    }
+}
+
+/// Smooth, area-weighted vertex normals for a counter-clockwise triangle
+/// list.
+///
+/// Vertices at the same position share their normal (so seams where a file
+/// splits vertices, e.g. for texture coordinates, stay smooth). A vertex
+/// that touches no non-degenerate triangle gets +y.
+pub fn smooth_normals(positions: &[Vec3], indices: &[u32]) -> Vec<Vec3> {
+    // Weld vertices by exact position.
+    let mut slot_of_position: HashMap<[u32; 3], usize> = HashMap::new();
+    let slots: Vec<usize> = positions
+        .iter()
+        .map(|p| {
+            let next = slot_of_position.len();
+            *slot_of_position
+                .entry(p.to_array().map(f32::to_bits))
+                .or_insert(next)
+        })
+        .collect();
+
+    // The cross product's length is twice the triangle area: summing
+    // unnormalised face normals weights them by area.
+    let mut sums = vec![Vec3::ZERO; slot_of_position.len()];
+    for tri in indices.chunks_exact(3) {
+        let [a, b, c] = [tri[0], tri[1], tri[2]].map(|i| i as usize);
+        if a >= positions.len() || b >= positions.len() || c >= positions.len() {
+            continue;
+        }
+        let n = (positions[b] - positions[a]).cross(positions[c] - positions[a]);
+        for v in [a, b, c] {
+            sums[slots[v]] += n;
+        }
+    }
+    slots
+        .iter()
+        .map(|&s| sums[s].normalize_or(Vec3::Y))
+        .collect()
+}

@@ -1,0 +1,252 @@
+//! Scene description: camera, lights, materials, shapes and instances,
+//! loaded from RON scene files (format version 1, see [`file`]).
+//!
+//! This module is CPU only; it uses no GPU types.
+//!
+//! ```no_run
+//! use celray::scene::{Scene, tessellate};
+//! let scene = Scene::load(std::path::Path::new("assets/scenes/default.ron"))?;
+//! for instance in &scene.instances {
+//!     let mesh = tessellate(&scene.shapes[instance.shape]);
+//!     println!("{} triangles", mesh.triangle_count());
+//! }
+//! # Ok::<(), celray::scene::SceneError>(())
+//! ```
+
+mod convert;
+mod error;
+mod file;
+mod material;
+mod mesh;
+mod overrides;
+mod shape;
+mod tessellate;
+mod validate;
+
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+
+pub use error::SceneError;
+pub use file::{DEFAULT_AMBIENT, DEFAULT_BACKGROUND, SCENE_FORMAT_VERSION};
+pub use material::{
+    parse_shading_model, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
+};
+pub use mesh::{smooth_normals, Mesh};
+pub use overrides::OVERRIDE_KEYS;
+pub use shape::{PlaneKind, Shape};
+pub use tessellate::{tessellate, ROUND_SEGMENTS, SPHERE_RINGS, SPHERE_SEGMENTS};
+pub use validate::{MAX_IMAGE_SIZE, MIN_TRANSFORM_DETERMINANT};
+
+/// A complete scene, validated (see [`Scene::validate`]).
+///
+/// Materials, shapes and their names are in file order; an index into
+/// `materials` is a material id, an index into `shapes` a shape id.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    pub camera: Camera,
+    /// Linear RGB, added as `ambient * base_color`.
+    pub ambient: Vec3,
+    /// Linear RGB colour behind everything.
+    pub background: Vec3,
+    pub lights: Vec<Light>,
+    pub materials: Vec<Material>,
+    /// `material_names[i]` is the name of `materials[i]`.
+    pub material_names: Vec<String>,
+    pub shapes: Vec<Shape>,
+    /// `shape_names[i]` is the name of `shapes[i]`.
+    pub shape_names: Vec<String>,
+    pub instances: Vec<Instance>,
+}
+
+/// A thin-lens perspective camera (a pinhole when `aperture_radius` is 0).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Camera {
+    pub eye: Vec3,
+    pub target: Vec3,
+    /// Up direction; need not be unit or orthogonal to the view direction,
+    /// but must not be parallel to it.
+    pub up: Vec3,
+    /// Vertical field of view in degrees, in (0, 180).
+    pub fov_y_deg: f32,
+    /// Image width in pixels, `1..=MAX_IMAGE_SIZE`.
+    pub width: u32,
+    /// Image height in pixels, `1..=MAX_IMAGE_SIZE`.
+    pub height: u32,
+    /// Lens radius in world units; 0 is a pinhole (no depth of field).
+    pub aperture_radius: f32,
+    /// Distance of the plane in focus; `None` means `|target - eye|`.
+    pub focus_distance: Option<f32>,
+    /// Shape of the lens opening (bokeh).
+    pub aperture: ApertureShape,
+    /// Shutter open time in seconds (motion blur); `open <= close`.
+    pub shutter_open_s: f32,
+    /// Shutter close time in seconds.
+    pub shutter_close_s: f32,
+}
+
+/// Shape of the camera aperture.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ApertureShape {
+    Disk,
+    Square,
+    /// Regular polygon with `blades >= 3` corners, rotated by
+    /// `rotation_deg` (counter-clockwise).
+    Polygon {
+        blades: u32,
+        rotation_deg: f32,
+    },
+}
+
+/// A light source. Colours are linear RGB; `intensity` scales `color`
+/// (how a point light falls off with distance is up to the renderer).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Light {
+    Directional {
+        /// Unit direction the light travels in (normalised at load).
+        direction: Vec3,
+        color: Vec3,
+        intensity: f32,
+        cast_shadows: bool,
+    },
+    Point {
+        position: Vec3,
+        color: Vec3,
+        intensity: f32,
+        cast_shadows: bool,
+    },
+}
+
+/// One placed copy of a base shape.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Instance {
+    /// Index into [`Scene::shapes`].
+    pub shape: usize,
+    /// Index into [`Scene::materials`].
+    pub material: usize,
+    /// Object-to-world transform: affine and invertible.
+    pub world_from_object: Mat4,
+}
+
+impl Camera {
+    /// Width divided by height.
+    pub fn aspect(&self) -> f32 {
+        self.width as f32 / self.height.max(1) as f32
+    }
+
+    /// The focus distance with `None` resolved to `|target - eye|`.
+    pub fn resolved_focus_distance(&self) -> f32 {
+        self.focus_distance
+            .unwrap_or_else(|| self.eye.distance(self.target))
+    }
+}
+
+impl Instance {
+    /// Matrix for transforming normals: inverse transpose of the upper
+    /// 3x3 of `world_from_object`.
+    pub fn normal_matrix(&self) -> glam::Mat3 {
+        glam::Mat3::from_mat4(self.world_from_object)
+            .inverse()
+            .transpose()
+    }
+}
+
+/// File name used in messages about the built-in default scene.
+const BUILTIN_FILE_NAME: &str = "<built-in default.ron>";
+
+/// Meshes compiled into the binary so that the built-in scene loads from
+/// any working directory: (path as written in `default.ron`, file bytes).
+const EMBEDDED_MESHES: &[(&str, &[u8])] = &[(
+    "../models/spot/spot_triangulated.obj",
+    include_bytes!("../../assets/models/spot/spot_triangulated.obj"),
+)];
+
+impl Scene {
+    /// The text of `assets/scenes/default.ron`, compiled in.
+    pub const BUILTIN_DEFAULT_RON: &'static str = include_str!("../../assets/scenes/default.ron");
+
+    /// Reads and validates a scene file. Mesh paths are relative to the
+    /// file's directory. Never writes anything.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let base_dir = match path.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir,
+            _ => Path::new("."),
+        };
+        Scene::from_ron_str(&src, &path.display().to_string(), base_dir)
+    }
+
+    /// Parses and validates scene text. `file_name` is used in messages;
+    /// mesh paths are resolved against `base_dir`.
+    pub fn from_ron_str(src: &str, file_name: &str, base_dir: &Path) -> Result<Scene, SceneError> {
+        convert::scene_from_str(src, file_name, base_dir, &[])
+    }
+
+    /// The built-in default scene ([`Scene::BUILTIN_DEFAULT_RON`]).
+    ///
+    /// Its cow mesh is read from the source tree's `assets/` when that
+    /// exists, otherwise from a copy compiled into the binary, so this
+    /// works from any working directory.
+    pub fn builtin_default() -> Scene {
+        let base_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+        match convert::scene_from_str(
+            Self::BUILTIN_DEFAULT_RON,
+            BUILTIN_FILE_NAME,
+            &base_dir,
+            EMBEDDED_MESHES,
+        ) {
+            Ok(scene) => scene,
+            // The text and mesh are compiled in and covered by tests.
+            Err(e) => panic!("the built-in default scene is broken: {e}"),
+        }
+    }
+
+    /// Gives every material the shading model `model` (for example from
+    /// `--shading toon:3`). Outline settings are left as they are.
+    pub fn override_shading(&mut self, model: &ShadingModel) {
+        for material in &mut self.materials {
+            material.model = model.clone();
+        }
+    }
+
+    /// World-space axis-aligned bounding box `(min, max)` over all
+    /// instances; `(Vec3::ZERO, Vec3::ZERO)` when there are none.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for instance in &self.instances {
+            let Some(shape) = self.shapes.get(instance.shape) else {
+                continue;
+            };
+            let (a, b) = shape.bounds();
+            for i in 0..8 {
+                let corner = Vec3::new(
+                    if i & 1 == 0 { a.x } else { b.x },
+                    if i & 2 == 0 { a.y } else { b.y },
+                    if i & 4 == 0 { a.z } else { b.z },
+                );
+                let p = instance.world_from_object.transform_point3(corner);
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+        if lo.x > hi.x {
+            (Vec3::ZERO, Vec3::ZERO)
+        } else {
+            (lo, hi)
+        }
+    }
+
+    /// Index of the material called `name`.
+    pub fn material_id(&self, name: &str) -> Option<usize> {
+        self.material_names.iter().position(|n| n == name)
+    }
+
+    /// Index of the shape called `name`.
+    pub fn shape_id(&self, name: &str) -> Option<usize> {
+        self.shape_names.iter().position(|n| n == name)
+    }
+}

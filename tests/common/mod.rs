@@ -1,0 +1,73 @@
+//! Helpers shared by the GPU tests: a lavapipe device, small scenes, and CPU
+//! evaluations of the same math the shaders do.
+#![allow(dead_code)]
+
+use glam::{Vec2, Vec3};
+
+use celray::gpu::{AdapterChoice, Gpu};
+use celray::render::{camera::primary_ray, RenderSettings, Renderer};
+use celray::sampling::PixelPattern;
+use celray::scene::Scene;
+
+/// The adapter the tests use: $CELRAY_ADAPTER if set, else lavapipe.
+pub fn gpu() -> Gpu {
+    let choice = match std::env::var("CELRAY_ADAPTER") {
+        Ok(v) => AdapterChoice::parse(&v),
+        Err(_) => AdapterChoice::Software,
+    };
+    Gpu::new_headless(&choice).unwrap_or_else(|e| panic!("{e}"))
+}
+
+pub fn scene(ron: &str) -> Scene {
+    Scene::from_ron_str(ron, "test.ron", std::path::Path::new("."))
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// One sample at each pixel centre (regular pattern, spp 1).
+pub fn pixel_centre_settings(scene: &Scene) -> RenderSettings {
+    RenderSettings {
+        width: scene.camera.width,
+        height: scene.camera.height,
+        spp: 1,
+        pattern: PixelPattern::Regular,
+        ..RenderSettings::default()
+    }
+}
+
+/// Renders to convergence; returns the sRGB image and the id buffer.
+pub fn render(gpu: &Gpu, scene: Scene, settings: RenderSettings) -> (Vec<u8>, Vec<u32>) {
+    let mut r = Renderer::new(gpu, scene, settings).unwrap_or_else(|e| panic!("{e}"));
+    r.render_to_convergence(gpu, |_, _| {}).unwrap();
+    (r.read_srgb8(gpu).unwrap(), r.read_ids(gpu).unwrap())
+}
+
+/// Where the ray through image point `pixel` meets the sphere (centre c,
+/// radius r): the hit point, or None.
+pub fn ray_sphere(scene: &Scene, pixel: Vec2, c: Vec3, r: f32) -> Option<Vec3> {
+    let cam = &scene.camera;
+    let (o, d) = primary_ray(cam, (cam.width, cam.height), pixel);
+    let oc = o - c;
+    let b = oc.dot(d);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    (t > 0.0).then(|| o + d * t)
+}
+
+/// Linear to sRGB 8-bit, as the resolve pass encodes.
+pub fn srgb8(linear: f32) -> u8 {
+    let c = linear.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+pub fn rgb_at(img: &[u8], width: u32, x: u32, y: u32) -> [u8; 3] {
+    let i = ((y * width + x) * 4) as usize;
+    [img[i], img[i + 1], img[i + 2]]
+}

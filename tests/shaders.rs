@@ -1,0 +1,170 @@
+//! CPU-only shader checks: every composed pass validates with naga, and every
+//! Rust twin matches its WGSL struct in size, field offsets and constants.
+
+use std::mem::{offset_of, size_of};
+
+use celray::gpu::shader::{compose, pass_files};
+use celray::gpu::twins::*;
+
+fn parse(name: &str) -> naga::Module {
+    let src = compose(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+    naga::front::wgsl::parse_str(&src)
+        .unwrap_or_else(|e| panic!("{name}:\n{}", e.emit_to_string(&src)))
+}
+
+#[test]
+fn every_pass_validates() {
+    let mut count = 0;
+    for name in pass_files() {
+        let module = parse(name);
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name} fails validation: {e:?}"));
+        count += 1;
+    }
+    assert!(
+        count >= 3,
+        "expected at least the raster, accumulate and resolve passes"
+    );
+}
+
+/// (size, [(field, offset)]) of WGSL struct `name` in `module`.
+fn wgsl_layout(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+    for (_, ty) in module.types.iter() {
+        if ty.name.as_deref() == Some(name) {
+            if let naga::TypeInner::Struct { members, span } = &ty.inner {
+                return (
+                    *span,
+                    members
+                        .iter()
+                        .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                        .collect(),
+                );
+            }
+        }
+    }
+    panic!("struct {name} not found in WGSL");
+}
+
+macro_rules! check_twin {
+    ($module:expr, $ty:ident { $($field:ident),* $(,)? }) => {{
+        let (size, members) = wgsl_layout(&$module, stringify!($ty));
+        assert_eq!(size as usize, size_of::<$ty>(), "size of {}", stringify!($ty));
+        let rust: Vec<(String, u32)> = vec![$((stringify!($field).to_string(), offset_of!($ty, $field) as u32)),*];
+        assert_eq!(members, rust, "fields and offsets of {}", stringify!($ty));
+    }};
+}
+
+#[test]
+fn twins_match_wgsl_layouts() {
+    let module = parse("raster.wgsl");
+    check_twin!(
+        module,
+        FrameUniforms {
+            clip_from_world,
+            eye_in_world,
+            view_forward,
+            ambient,
+            background,
+            size_px,
+            light_count,
+            sample_index,
+            jitter_px,
+            max_outline_px,
+            seed
+        }
+    );
+    check_twin!(
+        module,
+        GpuLight {
+            position_or_direction,
+            radiance
+        }
+    );
+    check_twin!(
+        module,
+        GpuMaterial {
+            base_color,
+            shininess,
+            specular_color,
+            specular_threshold,
+            outline_color,
+            outline_width_px,
+            rim_color,
+            rim_threshold,
+            model,
+            band_count,
+            reflectivity,
+            roughness,
+            thresholds
+        }
+    );
+    check_twin!(
+        module,
+        GpuInstance {
+            world_from_object,
+            normal_from_object,
+            material,
+            shape,
+            mirrored,
+            _pad
+        }
+    );
+    check_twin!(
+        module,
+        ResolveUniforms {
+            width,
+            tone_map,
+            encode_srgb,
+            exposure
+        }
+    );
+}
+
+fn wgsl_u32_constant(module: &naga::Module, name: &str) -> u32 {
+    for (_, c) in module.constants.iter() {
+        if c.name.as_deref() == Some(name) {
+            match module.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::U32(v)) => return v,
+                ref other => panic!("{name} is not a u32 literal: {other:?}"),
+            }
+        }
+    }
+    panic!("constant {name} not found");
+}
+
+#[test]
+fn constants_and_workgroup_sizes_match() {
+    let module = parse("raster.wgsl");
+    for (name, value) in [
+        ("SHADING_BLINN_PHONG", SHADING_BLINN_PHONG),
+        ("SHADING_TOON", SHADING_TOON),
+        ("MAX_TOON_BANDS", MAX_TOON_BANDS),
+        ("TONE_MAP_CLAMP", TONE_MAP_CLAMP),
+        ("TONE_MAP_REINHARD", TONE_MAP_REINHARD),
+    ] {
+        assert_eq!(wgsl_u32_constant(&module, name), value, "{name}");
+    }
+    assert_eq!(MAX_TOON_BANDS, celray::scene::MAX_TOON_BANDS);
+    let accumulate = parse("accumulate.wgsl");
+    let entry = accumulate
+        .entry_points
+        .iter()
+        .find(|e| e.name == "main")
+        .expect("accumulate main");
+    assert_eq!(
+        entry.workgroup_size,
+        [ACCUMULATE_WORKGROUP, ACCUMULATE_WORKGROUP, 1]
+    );
+}
+
+#[test]
+fn include_expander_includes_each_piece_once() {
+    let src = compose("accumulate.wgsl").unwrap();
+    assert_eq!(src.matches("struct FrameUniforms").count(), 1);
+    assert!(!src.contains("#include"));
+    assert!(compose("no-such-pass.wgsl").is_err());
+}
