@@ -194,3 +194,35 @@ fn blinn_phong_matches_cpu_formula() {
     assert!(compared >= 50, "only {compared} pixels compared");
     eprintln!("Blinn-Phong: {compared} pixels, worst channel difference {worst}/255");
 }
+
+/// A toon sphere with a magenta outline of 3 px on black: along the middle
+/// scanline, the outline outside the silhouette is exactly 3 pixels wide
+/// (pixel centres 1, 2 and 3 px from the nearest sphere pixel) at every
+/// resolution, because the width is in pixels, not in scene units.
+#[test]
+fn outline_width_is_in_pixels_at_any_resolution() {
+    let gpu = gpu();
+    for size in [128u32, 256, 512] {
+        let ron = format!(
+            r#"(version: 1,
+                camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: {size}, height: {size}),
+                ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+                lights: [Directional(direction: (0.0, 0.0, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+                materials: {{ "m": (base_color: (0.2, 0.8, 0.2), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 3),
+                               outline_color: (1.0, 0.0, 1.0), outline_width_px: 3.0) }},
+                shapes: {{ "ball": Sphere(radius: 1.0) }},
+                instances: [(shape: "ball", material: "m")],
+            )"#
+        );
+        let scene = scene(&ron);
+        let (img, ids) = render(&gpu, scene.clone(), pixel_centre_settings(&scene));
+        let y = size / 2;
+        let first_sphere = (0..size).find(|&x| ids[(y * size + x) as usize] != 0).expect("sphere on the scanline");
+        let outline: Vec<u32> = (0..first_sphere).filter(|&x| rgb_at(&img, size, x, y) == [255, 0, 255]).collect();
+        assert_eq!(
+            outline,
+            vec![first_sphere - 3, first_sphere - 2, first_sphere - 1],
+            "{size}px image: outline pixels left of the silhouette"
+        );
+    }
+}

@@ -29,11 +29,14 @@ pub(crate) fn scene_from_str(
     embedded: &[(&str, &[u8])],
 ) -> Result<Scene, SceneError> {
     let options = ron_options();
-    let syntax_error = |e: ron::error::SpannedError| SceneError::Syntax {
-        file: file_name.to_string(),
-        line: e.position.line,
-        col: e.position.col,
-        message: e.code.to_string(),
+    let syntax_error = |e: ron::error::SpannedError| {
+        let position = start_of_bad_name(src, &e);
+        SceneError::Syntax {
+            file: file_name.to_string(),
+            line: position.line,
+            col: position.col,
+            message: e.code.to_string(),
+        }
     };
 
     // Check the version first, so that a newer file says so instead of
@@ -65,7 +68,7 @@ pub(crate) fn scene_from_str(
         embedded,
         cache: HashMap::new(),
     };
-    let scene = convert(file, &mut meshes).map_err(|e| e.in_file(file_name))?;
+    let scene = convert(file, file_name, &mut meshes).map_err(|e| e.in_file(file_name))?;
     scene.validate().map_err(|e| e.in_file(file_name))?;
     log::info!(
         "loaded scene {file_name}: {} instances, {} shapes, {} materials, {} lights",
@@ -77,7 +80,31 @@ pub(crate) fn scene_from_str(
     Ok(scene)
 }
 
-fn convert(file: SceneFile, meshes: &mut MeshLoader) -> Result<Scene, SceneError> {
+/// RON reports an unknown field or variant at the end of its name; move
+/// the position back to where the name starts, which is where the user has
+/// to look.
+fn start_of_bad_name(src: &str, e: &ron::error::SpannedError) -> ron::error::Position {
+    let position = e.position;
+    let name = match &e.code {
+        ron::Error::NoSuchStructField { found, .. }
+        | ron::Error::NoSuchEnumVariant { found, .. } => found,
+        _ => return position,
+    };
+    let Some(line) = src.lines().nth(position.line.saturating_sub(1)) else {
+        return position;
+    };
+    let before: String = line.chars().take(position.col.saturating_sub(1)).collect();
+    if before.ends_with(name.as_str()) {
+        ron::error::Position {
+            line: position.line,
+            col: position.col - name.chars().count(),
+        }
+    } else {
+        position
+    }
+}
+
+fn convert(file: SceneFile, file_name: &str, meshes: &mut MeshLoader) -> Result<Scene, SceneError> {
     let lights = file
         .lights
         .into_iter()
@@ -110,7 +137,7 @@ fn convert(file: SceneFile, meshes: &mut MeshLoader) -> Result<Scene, SceneError
                 .iter()
                 .position(|n| n == name)
                 .ok_or_else(|| SceneError::UnknownName {
-                    file: meshes.scene_file.to_string(),
+                    file: file_name.to_string(),
                     instance: i,
                     kind,
                     name: name.to_string(),

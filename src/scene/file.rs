@@ -1,23 +1,9 @@
 //! Serde types mirroring the scene file format (version 1, RON).
 //!
-//! These types only describe the text; [`super::convert`] turns them into
-//! a [`Scene`](super::Scene), resolving names and loading meshes.
+//! These types only describe the text; `convert.rs` turns them into a
+//! [`Scene`](super::Scene), resolving names and loading meshes.
 //!
-//! The file is parsed with RON's `implicit_some` extension, so optional
-//! values may be written plainly (`focus_distance: 4.0`) or as
-//! `Some(4.0)` / `None`.
-//!
-//! ```ron
-//! (
-//!     version: 1,
-//!     camera: (eye: (0.0, 1.5, 6.0), target: (0.0, 0.8, 0.0), up: (0.0, 1.0, 0.0),
-//!              fov_y_deg: 40.0, width: 1280, height: 720),
-//!     lights: [Directional(direction: (-0.5, -1.0, -0.6))],
-//!     materials: { "red": (base_color: (0.8, 0.15, 0.1), model: Toon(bands: 4)) },
-//!     shapes: { "ball": Sphere(radius: 1.0) },
-//!     instances: [(shape: "ball", material: "red", transform: (translate: (0.0, 1.0, 0.0)))],
-//! )
-//! ```
+//! The format is documented on the [`scene`](super) module.
 
 use std::collections::HashSet;
 use std::fmt;
@@ -45,7 +31,7 @@ pub(crate) struct VersionProbe {
 
 /// The whole file.
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "scene")]
 pub(crate) struct SceneFile {
     /// Must be [`SCENE_FORMAT_VERSION`].
     pub version: u32,
@@ -92,7 +78,7 @@ fn default_shininess() -> f32 {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "camera")]
 pub(crate) struct CameraFile {
     pub eye: Vec3,
     pub target: Vec3,
@@ -113,7 +99,7 @@ pub(crate) struct CameraFile {
 }
 
 #[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "aperture")]
 pub(crate) enum ApertureFile {
     #[default]
     Disk,
@@ -126,7 +112,7 @@ pub(crate) enum ApertureFile {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "light")]
 pub(crate) enum LightFile {
     Directional {
         direction: Vec3,
@@ -149,7 +135,7 @@ pub(crate) enum LightFile {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "material")]
 pub(crate) struct MaterialFile {
     pub base_color: Vec3,
     pub model: ModelFile,
@@ -169,7 +155,7 @@ pub(crate) struct MaterialFile {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "model")]
 pub(crate) enum ModelFile {
     BlinnPhong,
     /// Exactly one of `bands` (even bands) and `thresholds` must be given.
@@ -186,14 +172,14 @@ pub(crate) enum ModelFile {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "rim")]
 pub(crate) struct RimFile {
     pub color: Vec3,
     pub threshold: f32,
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "shape")]
 pub(crate) enum ShapeFile {
     Sphere {
         radius: f32,
@@ -217,14 +203,14 @@ pub(crate) enum ShapeFile {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "Plane")]
 pub(crate) enum PlaneFile {
     Quad { half_size: Vec2 },
     Disk { radius: f32 },
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "instance")]
 pub(crate) struct InstanceFile {
     pub shape: String,
     pub material: String,
@@ -254,7 +240,7 @@ impl Default for TransformFile {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "transform")]
 pub(crate) struct TrsFile {
     #[serde(default)]
     pub translate: Vec3,

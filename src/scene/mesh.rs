@@ -106,9 +106,10 @@ impl Mesh {
         }
     }
 
-    /// Parses Wavefront OBJ text. Faces are triangulated and all models of
-    /// the file are merged; material libraries are ignored. `source` is
-    /// used in error messages and stored in [`Mesh::source`].
+    /// Parses Wavefront OBJ text. Faces are triangulated and all objects of
+    /// the file are merged; material libraries are ignored. If any object
+    /// has no normals, smooth normals are computed for the whole mesh.
+    /// `source` is used in error messages and stored in [`Mesh::source`].
     pub fn from_obj_bytes(bytes: &[u8], source: &str) -> Result<Mesh, SceneError> {
         let parse_error = |reason: String| SceneError::MeshParse {
             path: source.into(),
@@ -143,7 +144,7 @@ impl Mesh {
                 mesh.normals.extend(
                     m.normals
                         .chunks_exact(3)
-                        .map(|n| Vec3::new(n[0], n[1], n[2])),
+                        .map(|n| Vec3::new(n[0], n[1], n[2]).normalize_or(Vec3::Y)),
                 );
             } else {
                 all_have_normals = false;
@@ -181,8 +182,25 @@ impl Mesh {
         let gltf::Gltf { document, blob } =
             gltf::Gltf::open(path).map_err(|e| parse_error(format!("invalid glTF: {e}")))?;
         let base = path.parent().unwrap_or(Path::new("."));
-        let buffers = gltf::import_buffers(&document, Some(base), blob)
-            .map_err(|e| parse_error(format!("cannot read glTF buffers: {e}")))?;
+        let buffers = gltf::import_buffers(&document, Some(base), blob).map_err(|e| {
+            let files: Vec<String> = document
+                .buffers()
+                .filter_map(|b| match b.source() {
+                    gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
+                        Some(base.join(uri).display().to_string())
+                    }
+                    _ => None,
+                })
+                .collect();
+            if files.is_empty() {
+                parse_error(format!("cannot read glTF buffers: {e}"))
+            } else {
+                parse_error(format!(
+                    "cannot read glTF buffers (from {}): {e}",
+                    files.join(", ")
+                ))
+            }
+        })?;
 
         let scene = document
             .default_scene()

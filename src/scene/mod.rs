@@ -1,5 +1,5 @@
 //! Scene description: camera, lights, materials, shapes and instances,
-//! loaded from RON scene files (format version 1, see [`file`]).
+//! loaded from RON scene files.
 //!
 //! This module is CPU only; it uses no GPU types.
 //!
@@ -12,6 +12,69 @@
 //! }
 //! # Ok::<(), celray::scene::SceneError>(())
 //! ```
+//!
+//! # Scene file format, version 1
+//!
+//! ```ron
+//! (
+//!     version: 1,
+//!     camera: (
+//!         eye: (0.0, 1.5, 6.0), target: (0.0, 0.8, 0.0), up: (0.0, 1.0, 0.0),
+//!         fov_y_deg: 40.0, width: 1280, height: 720,
+//!         // Optional (pinhole defaults): aperture_radius: 0.0, focus_distance: None,
+//!         // aperture: Disk | Square | Polygon(blades: 6, rotation_deg: 0.0),
+//!         // shutter_open_s: 0.0, shutter_close_s: 0.0
+//!     ),
+//!     ambient: (0.08, 0.08, 0.1),        // optional, default (0.05, 0.05, 0.05)
+//!     background: (0.6, 0.7, 0.85),      // optional, default (0.5, 0.5, 0.5)
+//!     lights: [
+//!         // color (default white), intensity (default 1) and
+//!         // cast_shadows (default true) are optional.
+//!         Directional(direction: (-0.5, -1.0, -0.6), color: (1.0, 1.0, 1.0), intensity: 1.0),
+//!         Point(position: (3.0, 4.0, 2.0), color: (1.0, 0.9, 0.8), intensity: 0.6),
+//!     ],
+//!     materials: {
+//!         // base_color and model are required. Optional: specular_color (1, 1, 1),
+//!         // shininess 32, outline_color (0, 0, 0), outline_width_px (1.5 for toon,
+//!         // 0 for Blinn-Phong), reflectivity 0, roughness 0.
+//!         "red": (base_color: (0.8, 0.15, 0.1), model: Toon(bands: 4)),
+//!         "plastic": (base_color: (0.2, 0.3, 0.8), model: BlinnPhong, shininess: 64.0),
+//!         // Toon takes `bands` (even bands) or `thresholds`, not both; optional
+//!         // specular_threshold (0.5) and rim (none).
+//!         "skin": (base_color: (0.9, 0.7, 0.6), model: Toon(thresholds: [0.2, 0.5, 0.8],
+//!                  rim: Some((color: (0.3, 0.3, 0.3), threshold: 0.6)))),
+//!     },
+//!     shapes: {
+//!         "ball": Sphere(radius: 1.0),
+//!         "crate": Box(half_extents: (0.5, 0.5, 0.5)),
+//!         "can": Cylinder(radius: 0.5, height: 1.0),
+//!         "cone": Cone(radius: 0.5, height: 1.0),
+//!         "floor": Plane(Quad(half_size: (10.0, 10.0))),
+//!         "disk": Plane(Disk(radius: 2.0)),
+//!         // .obj, .gltf or .glb, relative to this file's directory
+//!         "cow": Mesh(path: "../models/spot/spot_triangulated.obj"),
+//!     },
+//!     instances: [
+//!         // Every TRS field is optional; the matrix is T * Rz * Ry * Rx * S
+//!         // (scale, then rotate about x, y, z in degrees, then translate).
+//!         (shape: "ball", material: "red",
+//!          transform: (translate: (0.0, 1.0, 0.0), rotate_deg: (0.0, 30.0, 0.0), scale: (1.0, 1.0, 1.0))),
+//!         // Four rows, row-major as written on paper (translation in the last column).
+//!         (shape: "crate", material: "plastic",
+//!          transform: Matrix(((1, 0, 0, 2), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1)))),
+//!         (shape: "cow", material: "skin"),   // no transform: identity
+//!     ],
+//! )
+//! ```
+//!
+//! Rules:
+//! - Unknown fields are errors. Materials and shapes keep file order (their
+//!   index is their id); a name defined twice is an error.
+//! - Optional values may be written plainly (`focus_distance: 4.0`) or as
+//!   `Some(4.0)` / `None` (RON's `implicit_some` is on).
+//! - Instance transforms must be finite, affine and invertible
+//!   (`|det| >= 1e-8`).
+//! - All colours are linear RGB.
 
 mod convert;
 mod error;
@@ -248,5 +311,43 @@ impl Scene {
     /// Index of the shape called `name`.
     pub fn shape_id(&self, name: &str) -> Option<usize> {
         self.shape_names.iter().position(|n| n == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The built-in scene still finds its cow when the assets directory is
+    /// not there (binary run from elsewhere).
+    #[test]
+    fn builtin_default_falls_back_to_embedded_mesh() {
+        let nowhere = Path::new("/nonexistent/celray/assets/scenes");
+        let scene = convert::scene_from_str(
+            Scene::BUILTIN_DEFAULT_RON,
+            BUILTIN_FILE_NAME,
+            nowhere,
+            EMBEDDED_MESHES,
+        )
+        .unwrap();
+        let on_disk = Scene::builtin_default();
+        assert_eq!(scene.instances, on_disk.instances);
+        let meshes: Vec<&Mesh> = scene
+            .shapes
+            .iter()
+            .filter_map(|s| match s {
+                Shape::Mesh(m) => Some(m),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(meshes.len(), 1);
+        assert_eq!(meshes[0].triangle_count(), 5856);
+        assert!(meshes[0].source.contains("built-in"));
+
+        // Without the embedded copy the same text fails with a clear error.
+        let err = convert::scene_from_str(Scene::BUILTIN_DEFAULT_RON, "x.ron", nowhere, &[])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("spot_triangulated.obj") && err.contains("not found"));
     }
 }
