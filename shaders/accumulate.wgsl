@@ -12,38 +12,66 @@
 @group(0) @binding(5) var id_tex: texture_2d<u32>;
 @group(0) @binding(6) var<storage, read_write> accum: array<vec4<f32>>;
 
-const ACCUMULATE_WORKGROUP: u32 = 8u;
+const ACCUMULATE_WORKGROUP: u32 = 16u;
+// Outlines wider than this many pixels are drawn this wide.
+const MAX_OUTLINE_RADIUS: i32 = 8;
+// Workgroup tile with its halo: (16 + 2 * 8)^2 texels at most.
+const TILE_TEXELS: u32 = 1024u;
 // q is in front of p when its view depth is smaller by this fraction.
 const DEPTH_JUMP: f32 = 0.05;
 // Normals more than 60 degrees apart make a crease.
 const CREASE_COS: f32 = 0.5;
 
-// The outline colour covering pixel p, if any (a = 1). An outline is drawn
-// on the far side of a discontinuity: pixel p takes the outline of the
-// nearest pixel q within q's material's width (in pixels: the width does
-// not change with resolution) that is in front of p, or on p's background.
-fn outline_at(p: vec2<i32>) -> vec4<f32> {
+// The G-buffer around this workgroup's pixels, loaded once and shared, so
+// the outline search reads workgroup memory rather than textures.
+var<workgroup> tile_id: array<u32, TILE_TEXELS>;
+var<workgroup> tile_normal_depth: array<vec4<f32>, TILE_TEXELS>;
+var<workgroup> tile_material: array<u32, TILE_TEXELS>;
+var<workgroup> tile_width: array<f32, TILE_TEXELS>;
+
+fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
     let size = vec2<i32>(frame.size_px);
-    let id_p = textureLoad(id_tex, p, 0).x;
-    let nd_p = textureLoad(normal_depth_tex, p, 0);
-    let r = i32(ceil(frame.max_outline_px));
+    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
+        let q = origin + vec2<i32>(k % span, k / span);
+        var id = 0u;
+        var nd = vec4<f32>(0.0);
+        var material = 0u;
+        var width = 0.0;
+        if all(q >= vec2<i32>(0)) && all(q < size) {
+            id = textureLoad(id_tex, q, 0).x;
+            if id != 0u {
+                nd = textureLoad(normal_depth_tex, q, 0);
+                material = instances[id - 1u].material;
+                width = materials[material].outline_width_px;
+            }
+        }
+        tile_id[k] = id;
+        tile_normal_depth[k] = nd;
+        tile_material[k] = material;
+        tile_width[k] = width;
+    }
+}
+
+// The outline colour covering the pixel at tile position c, if any (a = 1).
+// An outline is drawn on the far side of a discontinuity: the pixel takes
+// the outline of the nearest pixel q within q's material's width (in pixels:
+// the width does not change with resolution) that is in front of it, or on
+// its background.
+fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
+    let k_p = c.y * span + c.x;
+    let id_p = tile_id[k_p];
+    let nd_p = tile_normal_depth[k_p];
     var best_depth = 3.0e38;
-    var result = vec4<f32>(0.0);
+    var best_material = 0xffffffffu;
     for (var dy = -r; dy <= r; dy++) {
         for (var dx = -r; dx <= r; dx++) {
-            let q = p + vec2<i32>(dx, dy);
-            if (dx == 0 && dy == 0) || any(q < vec2<i32>(0)) || any(q >= size) {
+            let k = (c.y + dy) * span + c.x + dx;
+            let id_q = tile_id[k];
+            let w = tile_width[k];
+            if id_q == 0u || f32(dx * dx + dy * dy) > w * w {
                 continue;
             }
-            let id_q = textureLoad(id_tex, q, 0).x;
-            if id_q == 0u {
-                continue;
-            }
-            let m = materials[instances[id_q - 1u].material];
-            if f32(dx * dx + dy * dy) > m.outline_width_px * m.outline_width_px {
-                continue;
-            }
-            let nd_q = textureLoad(normal_depth_tex, q, 0);
+            let nd_q = tile_normal_depth[k];
             var edge = id_p == 0u;
             if !edge {
                 let in_front = nd_q.w < nd_p.w * (1.0 - DEPTH_JUMP);
@@ -53,22 +81,36 @@ fn outline_at(p: vec2<i32>) -> vec4<f32> {
             }
             if edge && nd_q.w < best_depth {
                 best_depth = nd_q.w;
-                result = vec4<f32>(m.outline_color, 1.0);
+                best_material = tile_material[k];
             }
         }
     }
-    return result;
+    if best_material == 0xffffffffu {
+        return vec4<f32>(0.0);
+    }
+    return vec4<f32>(materials[best_material].outline_color, 1.0);
 }
 
 @compute @workgroup_size(ACCUMULATE_WORKGROUP, ACCUMULATE_WORKGROUP)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+) {
+    // Integer offsets within a disk of radius w have |dx|, |dy| <= floor(w).
+    let r = i32(floor(min(frame.max_outline_px, f32(MAX_OUTLINE_RADIUS))));
+    let span = i32(ACCUMULATE_WORKGROUP) + 2 * r;
+    if r > 0 {
+        load_tile(vec2<i32>(wg.xy * ACCUMULATE_WORKGROUP) - vec2<i32>(r), span, li);
+    }
+    workgroupBarrier();
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
         return;
     }
-    let p = vec2<i32>(gid.xy);
-    var c = textureLoad(color_tex, p, 0).rgb;
-    if frame.max_outline_px > 0.0 {
-        let o = outline_at(p);
+    var c = textureLoad(color_tex, vec2<i32>(gid.xy), 0).rgb;
+    if r > 0 {
+        let o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
         c = mix(c, o.rgb, o.a);
     }
     let i = gid.y * frame.size_px.x + gid.x;

@@ -14,6 +14,8 @@ struct VsOut {
     @location(0) world_pos: vec3<f32>,
     @location(1) world_normal: vec3<f32>,
     @location(2) @interpolate(flat) instance: u32,
+    @location(3) @interpolate(flat) material: u32,
+    @location(4) @interpolate(flat) mirrored: u32,
 }
 
 @vertex
@@ -22,13 +24,15 @@ fn vs_main(
     @location(1) normal: vec3<f32>,
     @builtin(instance_index) instance: u32,
 ) -> VsOut {
-    let inst = instances[instance];
-    let p = inst.world_from_object * vec4<f32>(position, 1.0);
+    // Field by field: copying the whole struct costs on CPU drivers.
+    let p = instances[instance].world_from_object * vec4<f32>(position, 1.0);
     var out: VsOut;
     out.clip = frame.clip_from_world * p;
     out.world_pos = p.xyz;
-    out.world_normal = (inst.normal_from_object * vec4<f32>(normal, 0.0)).xyz;
+    out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
     out.instance = instance;
+    out.material = instances[instance].material;
+    out.mirrored = instances[instance].mirrored;
     return out;
 }
 
@@ -42,12 +46,11 @@ struct GBuffer {
 
 @fragment
 fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
-    let inst = instances[in.instance];
-    let m = materials[inst.material];
+    let m = materials[in.material];
     var n = normalize(in.world_normal);
     // Two-sided surfaces (planes) shade their back with the flipped normal;
     // a mirroring transform flips the winding, so flip the test with it.
-    if front_facing == (inst.mirrored == 1u) {
+    if front_facing == (in.mirrored == 1u) {
         n = -n;
     }
     let eye = frame.eye_in_world.xyz;

@@ -32,7 +32,7 @@ fn time_frames(gpu: &Gpu, scene: Scene, args: &BenchArgs) -> anyhow::Result<(f64
     let settings = RenderSettings {
         width: args.width,
         height: args.height,
-        spp: u32::MAX,
+        spp: 1 << 20,
         ..RenderSettings::default()
     };
     let mut renderer = Renderer::new(gpu, scene, settings)?;
@@ -52,7 +52,9 @@ fn time_frames(gpu: &Gpu, scene: Scene, args: &BenchArgs) -> anyhow::Result<(f64
         view_formats: &[],
     });
     let view = target.create_view(&Default::default());
+    let timed = renderer.enable_pass_timing(gpu);
     let mut times = Vec::new();
+    let mut pass_ms: Vec<(&str, f64)> = Vec::new();
     for i in 0..args.frames + 3 {
         let start = Instant::now();
         renderer.render_sample(gpu)?;
@@ -62,8 +64,21 @@ fn time_frames(gpu: &Gpu, scene: Scene, args: &BenchArgs) -> anyhow::Result<(f64
         gpu.wait_idle()?;
         if i >= 3 {
             times.push(start.elapsed().as_secs_f64() * 1e3);
+            if timed {
+                for (k, (name, ms)) in renderer.pass_times(gpu)?.into_iter().enumerate() {
+                    if pass_ms.len() <= k {
+                        pass_ms.push((name, 0.0));
+                    }
+                    pass_ms[k].1 += ms / f64::from(args.frames);
+                }
+            }
         }
     }
+    let passes: Vec<String> = pass_ms
+        .iter()
+        .map(|(n, ms)| format!("{n} {ms:.1}"))
+        .collect();
+    log::warn!("GPU ms per pass: {}", passes.join(", "));
     let mean = times.iter().sum::<f64>() / times.len() as f64;
     times.sort_by(f64::total_cmp);
     Ok((mean, times[times.len() / 2]))

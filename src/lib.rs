@@ -5,6 +5,7 @@
 //! math) at the bottom, `gpu` (wgpu plumbing), `render` (the passes),
 //! `capture` (headless images) and, behind the `app` feature, the window.
 
+pub mod accel;
 pub mod capture;
 pub mod gpu;
 pub mod render;

@@ -71,7 +71,8 @@ pub fn radical_inverse(mut i: u32, base: u32) -> f32 {
 
 /// Sub-pixel offset in [0, 1)^2 of sample `k` of `spp` for `seed`.
 pub fn pixel_offset(pattern: PixelPattern, k: u32, spp: u32, seed: u32) -> Vec2 {
-    let n = (spp.max(1) as f32).sqrt().ceil() as u32;
+    // Grids above 4096 x 4096 cells are pointless (and would overflow n * n).
+    let n = (spp.clamp(1, 1 << 24) as f32).sqrt().ceil() as u32;
     let cell = Vec2::new((k % n) as f32, ((k / n) % n) as f32);
     match pattern {
         PixelPattern::Regular => (cell + Vec2::splat(0.5)) / n as f32,

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use celray::scene::{
     parse_shading_model, tessellate, Light, Mesh, PlaneKind, Scene, SceneError, ShadingModel,
-    Shape, Toon, MAX_TOON_BANDS, SPHERE_RINGS, SPHERE_SEGMENTS,
+    Shape, Toon, MAX_TOON_BANDS, ROUND_SEGMENTS, SPHERE_RINGS, SPHERE_SEGMENTS,
 };
 use glam::{Vec2, Vec3, Vec4};
 
@@ -376,7 +376,7 @@ fn tessellated_sphere_lies_on_the_sphere() {
     assert_well_formed(&mesh);
     let expected_tris = 2 * SPHERE_SEGMENTS * (SPHERE_RINGS - 1);
     assert_eq!(mesh.triangle_count(), expected_tris as usize);
-    const { assert!(SPHERE_SEGMENTS >= 192 && SPHERE_RINGS >= 96) };
+    const { assert!(SPHERE_SEGMENTS >= 128 && SPHERE_RINGS >= 64) };
     for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
         assert!((p.length() - radius).abs() < 1e-5, "{p} off the sphere");
         assert!((*p / radius - *n).length() < 1e-5, "normal {n} at {p}");
@@ -414,12 +414,15 @@ fn tessellated_shapes_are_well_formed() {
     let quad = tessellate(&shapes[3]);
     assert_eq!((quad.positions.len(), quad.triangle_count()), (4, 2));
     assert!(quad.normals.iter().all(|&n| n == Vec3::Y));
-    assert_eq!(tessellate(&shapes[4]).triangle_count(), 192);
+    assert_eq!(
+        tessellate(&shapes[4]).triangle_count(),
+        ROUND_SEGMENTS as usize
+    );
 
-    // Cylinder: side + two capped fans of 192 segments each; cap vertices
+    // Cylinder: side + two capped fans of ROUND_SEGMENTS segments each; cap vertices
     // have flat normals.
     let can = tessellate(&shapes[1]);
-    assert_eq!(can.triangle_count(), 4 * 192);
+    assert_eq!(can.triangle_count(), 4 * ROUND_SEGMENTS as usize);
     for (p, n) in can.positions.iter().zip(&can.normals) {
         if n.y == 0.0 {
             assert!((Vec2::new(p.x, p.z).length() - 0.5).abs() < 1e-5);
@@ -429,7 +432,7 @@ fn tessellated_shapes_are_well_formed() {
     }
     // Cone: base at y = 0, apex at y = height, base normal -y.
     let cone = tessellate(&shapes[2]);
-    assert_eq!(cone.triangle_count(), 2 * 192);
+    assert_eq!(cone.triangle_count(), 2 * ROUND_SEGMENTS as usize);
     assert!(cone
         .positions
         .iter()

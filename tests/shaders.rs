@@ -106,6 +106,7 @@ fn twins_match_wgsl_layouts() {
         module,
         GpuInstance {
             world_from_object,
+            object_from_world,
             normal_from_object,
             material,
             shape,

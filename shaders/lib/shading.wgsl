@@ -26,14 +26,14 @@ fn sample_light(light: GpuLight, p: vec3<f32>) -> LightSample {
 
 // The toon band of a diffuse term d = max(N.L, 0): the number of thresholds
 // at or below d, so band 0 holds the unlit side and the darkest lit band.
+// Unused threshold slots hold 2.0, which d never reaches; counting with
+// vector steps avoids a dynamically indexed loop (slow on CPU drivers).
 fn toon_band(m: GpuMaterial, d: f32) -> u32 {
-    var band = 0u;
-    for (var i = 0u; i + 1u < m.band_count; i++) {
-        if d >= m.thresholds[i / 4u][i % 4u] {
-            band += 1u;
-        }
-    }
-    return band;
+    let dv = vec4<f32>(d);
+    let ones = vec4<f32>(1.0);
+    let count = dot(step(m.thresholds[0], dv), ones) + dot(step(m.thresholds[1], dv), ones)
+        + dot(step(m.thresholds[2], dv), ones) + dot(step(m.thresholds[3], dv), ones);
+    return u32(count);
 }
 
 // Band b of N shows the diffuse level (b + 1) / N: N flat levels, the top

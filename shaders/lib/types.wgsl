@@ -47,12 +47,15 @@ struct GpuMaterial {
     band_count: u32,
     reflectivity: f32,
     roughness: f32,
-    // band_count - 1 increasing N.L thresholds, packed four to a vec4.
+    // band_count - 1 increasing N.L thresholds, packed four to a vec4;
+    // unused slots hold 2.0 (above any N.L).
     thresholds: array<vec4<f32>, 4>,
 }
 
 struct GpuInstance {
     world_from_object: mat4x4<f32>,
+    // Inverse of world_from_object: takes rays into object space.
+    object_from_world: mat4x4<f32>,
     // Inverse transpose of world_from_object: takes normals to world space.
     normal_from_object: mat4x4<f32>,
     material: u32,

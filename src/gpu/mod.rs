@@ -4,6 +4,7 @@
 mod context;
 pub mod readback;
 pub mod shader;
+pub mod timer;
 pub mod twins;
 
 pub use context::{list_adapters, AdapterChoice, AdapterSummary, Gpu};

@@ -9,8 +9,8 @@ pub const SHADING_TOON: u32 = 1;
 pub const MAX_TOON_BANDS: u32 = 16;
 pub const TONE_MAP_CLAMP: u32 = 0;
 pub const TONE_MAP_REINHARD: u32 = 1;
-/// Workgroup edge of the accumulate kernel (8 x 8 invocations).
-pub const ACCUMULATE_WORKGROUP: u32 = 8;
+/// Workgroup edge of the accumulate kernel (16 x 16 invocations).
+pub const ACCUMULATE_WORKGROUP: u32 = 16;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -57,6 +57,7 @@ pub struct GpuMaterial {
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuInstance {
     pub world_from_object: [[f32; 4]; 4],
+    pub object_from_world: [[f32; 4]; 4],
     pub normal_from_object: [[f32; 4]; 4],
     pub material: u32,
     pub shape: u32,
@@ -87,4 +88,79 @@ impl Vertex {
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
     };
+}
+
+/// Shape kinds of [`GpuShape::kind`].
+pub const SHAPE_SPHERE: u32 = 0;
+pub const SHAPE_BOX: u32 = 1;
+pub const SHAPE_CYLINDER: u32 = 2;
+pub const SHAPE_CONE: u32 = 3;
+pub const SHAPE_QUAD: u32 = 4;
+pub const SHAPE_DISK: u32 = 5;
+pub const SHAPE_MESH: u32 = 6;
+/// Entries of the traversal stacks (both levels); deeper trees are refused.
+pub const TRAVERSAL_STACK: u32 = 48;
+/// Loop iterations one ray query may take before it gives up and reports
+/// overflow: well under lavapipe's silent cut at ~65,535 per invocation.
+pub const MAX_TRAVERSAL_STEPS: u32 = 12000;
+/// Workgroup edge of the trace kernel (8 x 8 invocations).
+pub const TRACE_WORKGROUP: u32 = 8;
+/// Workgroup size of the ray-batch kernel used by tests.
+pub const RAY_BATCH_WORKGROUP: u32 = 64;
+
+/// A node of a bounding volume hierarchy. A leaf has `count > 0` items
+/// starting at `left_or_first`; an inner node's children are nodes
+/// `left_or_first` and `left_or_first + 1`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct BvhNode {
+    pub bounds_min: [f32; 3],
+    pub left_or_first: u32,
+    pub bounds_max: [f32; 3],
+    pub count: u32,
+}
+
+/// A triangle of a mesh in object space, with its vertex normals.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuTriangle {
+    pub p0: [f32; 4],
+    pub p1: [f32; 4],
+    pub p2: [f32; 4],
+    pub n0: [f32; 4],
+    pub n1: [f32; 4],
+    pub n2: [f32; 4],
+}
+
+/// A base shape for the ray tracer: its kind, parameters (radius, half
+/// extents, height, ...) and, for meshes, the root of its bottom-level BVH.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuShape {
+    pub params: [f32; 4],
+    pub kind: u32,
+    pub blas_root: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+/// A ray for the ray-batch kernel (tests and benchmarks).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuRay {
+    pub origin: [f32; 4],
+    pub dir: [f32; 4],
+}
+
+/// The closest hit of a [`GpuRay`]: `instance` is u32::MAX on a miss;
+/// `steps` counts loop iterations, `overflow` is 1 when the query gave up.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuHit {
+    pub normal: [f32; 3],
+    pub t: f32,
+    pub instance: u32,
+    pub steps: u32,
+    pub overflow: u32,
+    pub _pad: u32,
 }

@@ -1,5 +1,6 @@
 //! Pass 3: add this sample's colour (with outlines) to the accumulator.
 
+use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::ACCUMULATE_WORKGROUP;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::raster::{read_only_storage_entry, uniform_entry};
@@ -123,10 +124,15 @@ impl AccumulatePass {
         }));
     }
 
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, targets: &Targets) {
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        targets: &Targets,
+        timer: Option<&PassTimer>,
+    ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("accumulate pass"),
-            timestamp_writes: None,
+            timestamp_writes: timer.map(|t| t.compute_writes("accumulate")),
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, self.bind_group.as_ref(), &[]);

@@ -17,6 +17,7 @@ pub mod targets;
 
 use wgpu::util::DeviceExt;
 
+use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::FrameUniforms;
 use crate::gpu::{readback, Gpu, GpuError};
 use crate::sampling::pixel_offset;
@@ -27,6 +28,9 @@ use resolve::ResolvePass;
 use scene_buffers::SceneBuffers;
 pub use settings::{RenderSettings, ToneMap};
 use targets::Targets;
+
+/// The passes [`Renderer::pass_times`] reports, in order.
+pub const PASS_NAMES: [&str; 2] = ["raster", "accumulate"];
 
 pub struct Renderer {
     scene: Scene,
@@ -39,6 +43,8 @@ pub struct Renderer {
     capture_resolve: ResolvePass,
     /// Samples in the accumulator; 0 after any change.
     samples: u32,
+    /// GPU time per pass, when enabled and the adapter has timestamps.
+    timer: Option<PassTimer>,
 }
 
 impl Renderer {
@@ -69,6 +75,7 @@ impl Renderer {
             targets,
             frame,
             samples: 0,
+            timer: None,
         };
         renderer.bind(gpu);
         Ok(renderer)
@@ -175,16 +182,43 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("sample"),
             });
+        let background = [
+            uniforms.background[0],
+            uniforms.background[1],
+            uniforms.background[2],
+        ];
+        let timer = self.timer.as_ref();
         self.raster.encode(
             &mut encoder,
             &self.targets,
             &self.buffers,
-            uniforms.background[..3].try_into().unwrap_or([0.0; 3]),
+            background,
+            timer,
         );
-        self.accumulate.encode(&mut encoder, &self.targets);
+        self.accumulate.encode(&mut encoder, &self.targets, timer);
+        if let Some(t) = timer {
+            t.resolve(&mut encoder);
+        }
         gpu.queue.submit([encoder.finish()]);
         self.samples += 1;
         gpu.take_errors()
+    }
+
+    /// Starts timing each pass on the GPU (where the adapter has timestamp
+    /// queries); returns whether it can.
+    pub fn enable_pass_timing(&mut self, gpu: &Gpu) -> bool {
+        if self.timer.is_none() {
+            self.timer = PassTimer::new(gpu, &PASS_NAMES);
+        }
+        self.timer.is_some()
+    }
+
+    /// GPU milliseconds per pass of the last sample (blocks until it is done).
+    pub fn pass_times(&self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>, GpuError> {
+        match &self.timer {
+            Some(t) => t.read(gpu),
+            None => Ok(Vec::new()),
+        }
     }
 
     /// Renders samples until `settings.spp` are accumulated, calling
@@ -209,7 +243,7 @@ impl Renderer {
         encoder: &mut wgpu::CommandEncoder,
         view: &wgpu::TextureView,
     ) {
-        pass.encode(encoder, view);
+        pass.encode(encoder, view, None);
     }
 
     /// A resolve pass for targets of `format`, bound to this renderer.
@@ -231,7 +265,7 @@ impl Renderer {
                 label: Some("capture resolve"),
             });
         let view = self.targets.capture.create_view(&Default::default());
-        self.capture_resolve.encode(&mut encoder, &view);
+        self.capture_resolve.encode(&mut encoder, &view, None);
         gpu.queue.submit([encoder.finish()]);
         let bytes = readback::read_texture(gpu, &self.targets.capture, 4)?;
         gpu.take_errors()?;

@@ -1,12 +1,14 @@
 //! Pass 1: rasterize every instance into the G-buffer, shaded.
 
+use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::Vertex;
 use crate::gpu::{shader, Gpu, GpuError};
-use crate::render::scene_buffers::SceneBuffers;
+use crate::render::scene_buffers::{Cull, SceneBuffers};
 use crate::render::targets::{Targets, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 
 pub struct RasterPass {
-    pipeline: wgpu::RenderPipeline,
+    /// One pipeline per [`Cull`] mode: back, front, none.
+    pipelines: [wgpu::RenderPipeline; 3],
     layout: wgpu::BindGroupLayout,
     bind_group: Option<wgpu::BindGroup>,
 }
@@ -76,47 +78,52 @@ impl RasterPass {
                     write_mask: wgpu::ColorWrites::ALL,
                 })
             };
-            let pipeline = gpu
-                .device
-                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("raster pipeline"),
-                    layout: Some(&pipeline_layout),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some("vs_main"),
-                        compilation_options: Default::default(),
-                        buffers: &[Some(Vertex::LAYOUT)],
-                    },
-                    primitive: wgpu::PrimitiveState {
-                        topology: wgpu::PrimitiveTopology::TriangleList,
-                        front_face: wgpu::FrontFace::Ccw,
-                        // No culling: planes are two-sided and mirrored instances flip winding.
-                        cull_mode: None,
-                        ..Default::default()
-                    },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: DEPTH_FORMAT,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::Less),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some("fs_main"),
-                        compilation_options: Default::default(),
-                        targets: &[
-                            target(COLOR_FORMAT),
-                            target(NORMAL_DEPTH_FORMAT),
-                            target(ID_FORMAT),
-                        ],
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                });
+            let pipeline = |cull_mode| {
+                gpu.device
+                    .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                        label: Some("raster pipeline"),
+                        layout: Some(&pipeline_layout),
+                        vertex: wgpu::VertexState {
+                            module: &module,
+                            entry_point: Some("vs_main"),
+                            compilation_options: Default::default(),
+                            buffers: &[Some(Vertex::LAYOUT)],
+                        },
+                        primitive: wgpu::PrimitiveState {
+                            topology: wgpu::PrimitiveTopology::TriangleList,
+                            front_face: wgpu::FrontFace::Ccw,
+                            cull_mode,
+                            ..Default::default()
+                        },
+                        depth_stencil: Some(wgpu::DepthStencilState {
+                            format: DEPTH_FORMAT,
+                            depth_write_enabled: Some(true),
+                            depth_compare: Some(wgpu::CompareFunction::Less),
+                            stencil: Default::default(),
+                            bias: Default::default(),
+                        }),
+                        multisample: Default::default(),
+                        fragment: Some(wgpu::FragmentState {
+                            module: &module,
+                            entry_point: Some("fs_main"),
+                            compilation_options: Default::default(),
+                            targets: &[
+                                target(COLOR_FORMAT),
+                                target(NORMAL_DEPTH_FORMAT),
+                                target(ID_FORMAT),
+                            ],
+                        }),
+                        multiview_mask: None,
+                        cache: None,
+                    })
+            };
+            let pipelines = [
+                pipeline(Some(wgpu::Face::Back)),
+                pipeline(Some(wgpu::Face::Front)),
+                pipeline(None),
+            ];
             RasterPass {
-                pipeline,
+                pipelines,
                 layout,
                 bind_group: None,
             }
@@ -155,6 +162,7 @@ impl RasterPass {
         targets: &Targets,
         scene: &SceneBuffers,
         background: [f32; 3],
+        timer: Option<&PassTimer>,
     ) {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (color, normal_depth, id, depth) = (
@@ -204,15 +212,21 @@ impl RasterPass {
                 }),
                 stencil_ops: None,
             }),
-            timestamp_writes: None,
+            timestamp_writes: timer.map(|t| t.render_writes("raster")),
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
         for d in &scene.draws {
+            pass.set_pipeline(
+                &self.pipelines[match d.cull {
+                    Cull::Back => 0,
+                    Cull::Front => 1,
+                    Cull::None => 2,
+                }],
+            );
             pass.draw_indexed(
                 d.first_index..d.first_index + d.index_count,
                 d.base_vertex,

@@ -3,6 +3,7 @@
 
 use wgpu::util::DeviceExt;
 
+use crate::gpu::timer::PassTimer;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::raster::{read_only_storage_entry, uniform_entry};
 use crate::render::settings::RenderSettings;
@@ -104,7 +105,12 @@ impl ResolvePass {
     }
 
     /// Draws the resolved image into `view` (which must be the accumulator's size).
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, view: &wgpu::TextureView) {
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        view: &wgpu::TextureView,
+        timer: Option<&PassTimer>,
+    ) {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("resolve pass"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -117,7 +123,7 @@ impl ResolvePass {
                 },
             })],
             depth_stencil_attachment: None,
-            timestamp_writes: None,
+            timestamp_writes: timer.map(|t| t.render_writes("resolve")),
             occlusion_query_set: None,
             multiview_mask: None,
         });

@@ -11,10 +11,21 @@ use crate::gpu::twins::{
 use crate::gpu::{Gpu, GpuError};
 use crate::scene::{tessellate, Light, Material, Scene, ShadingModel, Shape};
 
+/// Which triangles a draw may skip. Closed analytic shapes are drawn with
+/// back faces culled (front faces when the instance mirrors, which flips the
+/// winding); planes and meshes from files (maybe open) are two-sided.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Cull {
+    Back,
+    Front,
+    None,
+}
+
 /// One instanced draw: a base shape's index range and its instances.
 #[derive(Debug, Clone)]
 pub struct Draw {
     pub shape: usize,
+    pub cull: Cull,
     pub first_index: u32,
     pub index_count: u32,
     pub base_vertex: i32,
@@ -49,7 +60,8 @@ pub fn material_to_gpu(m: &Material) -> GpuMaterial {
         band_count: 1,
         reflectivity: m.reflectivity,
         roughness: m.roughness,
-        thresholds: [[0.0; 4]; 4],
+        // Unused slots above any N.L (see toon_band in shaders/lib/shading.wgsl).
+        thresholds: [[2.0; 4]; 4],
     };
     if let ShadingModel::Toon(toon) = &m.model {
         g.model = SHADING_TOON;
@@ -103,6 +115,7 @@ pub fn light_to_gpu(light: &Light) -> GpuLight {
 pub fn instance_to_gpu(world_from_object: Mat4, material: usize, shape: usize) -> GpuInstance {
     GpuInstance {
         world_from_object: world_from_object.to_cols_array_2d(),
+        object_from_world: world_from_object.inverse().to_cols_array_2d(),
         normal_from_object: world_from_object.inverse().transpose().to_cols_array_2d(),
         material: material as u32,
         shape: shape as u32,
@@ -139,9 +152,25 @@ impl SceneBuffers {
         let limits = gpu.device.limits();
         let binding_limit = u64::from(limits.max_storage_buffer_binding_size);
 
-        // Instances sorted by base shape: each shape's instances are one range.
+        // Instances sorted by base shape, then by culling: each (shape, cull)
+        // group is one contiguous range, drawn by one instanced draw.
+        let cull_of = |i: usize| {
+            let inst = &scene.instances[i];
+            let closed = matches!(
+                scene.shapes[inst.shape],
+                Shape::Sphere { .. }
+                    | Shape::Box { .. }
+                    | Shape::Cylinder { .. }
+                    | Shape::Cone { .. }
+            );
+            match (closed, inst.world_from_object.determinant() < 0.0) {
+                (false, _) => Cull::None,
+                (true, false) => Cull::Back,
+                (true, true) => Cull::Front,
+            }
+        };
         let mut order: Vec<usize> = (0..scene.instances.len()).collect();
-        order.sort_by_key(|&i| scene.instances[i].shape);
+        order.sort_by_key(|&i| (scene.instances[i].shape, cull_of(i)));
         let instances: Vec<GpuInstance> = order
             .iter()
             .map(|&i| {
@@ -173,13 +202,24 @@ impl SceneBuffers {
                     &tessellated
                 }
             };
-            draws.push(Draw {
-                shape: shape_id,
-                first_index: indices.len() as u32,
-                index_count: mesh.indices.len() as u32,
-                base_vertex: vertices.len() as i32,
-                instances: first..end,
-            });
+            let mut group_start = first;
+            while group_start < end {
+                let cull = cull_of(order[group_start as usize]);
+                let group_end = group_start
+                    + order[group_start as usize..end as usize]
+                        .iter()
+                        .take_while(|&&i| cull_of(i) == cull)
+                        .count() as u32;
+                draws.push(Draw {
+                    shape: shape_id,
+                    cull,
+                    first_index: indices.len() as u32,
+                    index_count: mesh.indices.len() as u32,
+                    base_vertex: vertices.len() as i32,
+                    instances: group_start..group_end,
+                });
+                group_start = group_end;
+            }
             triangle_count += (mesh.indices.len() / 3) as u64 * u64::from(end - first);
             vertices.extend(
                 mesh.positions

@@ -1,0 +1,321 @@
+//! Acceleration structures for the ray tracer, built on the CPU: a bottom-level
+//! BVH per mesh (binned SAH over triangles; an analytic shape is its own
+//! leaf) and a top-level BVH over instances (world bounds of each transformed
+//! bottom level). Also the CPU reference traversal the tests compare the GPU
+//! against; it is never used for rendering. Imports scene, glam and the GPU
+//! twin structs (plain data).
+
+pub mod bvh;
+pub mod intersect;
+
+use glam::{Mat4, Vec3};
+
+use crate::gpu::twins::{
+    BvhNode, GpuShape, GpuTriangle, MAX_TRAVERSAL_STEPS, SHAPE_BOX, SHAPE_CONE, SHAPE_CYLINDER,
+    SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE, TRAVERSAL_STACK,
+};
+use crate::scene::{PlaneKind, Scene, Shape};
+use bvh::Aabb;
+
+/// Triangles per bottom-level leaf and instances per top-level leaf.
+const MESH_LEAF: usize = 4;
+const INSTANCE_LEAF: usize = 2;
+
+#[derive(Debug, thiserror::Error)]
+pub enum AccelError {
+    #[error(
+        "shape '{shape}': its BVH is {depth} levels deep, over the traversal stack of {limit}"
+    )]
+    TooDeep {
+        shape: String,
+        depth: u32,
+        limit: u32,
+    },
+}
+
+/// Everything the trace pass reads, as flat arrays.
+#[derive(Debug, Clone)]
+pub struct SceneAccel {
+    pub shapes: Vec<GpuShape>,
+    /// Top level at 0 (root 0), then every mesh's bottom level.
+    pub nodes: Vec<BvhNode>,
+    pub triangles: Vec<GpuTriangle>,
+    /// Top-level leaf slots -> GPU instance index.
+    pub tlas_items: Vec<u32>,
+    /// Per GPU instance: (world_from_object, object_from_world, shape).
+    pub instances: Vec<(Mat4, Mat4, u32)>,
+    pub build_ms: f64,
+}
+
+fn shape_params(shape: &Shape) -> (u32, [f32; 4]) {
+    match shape {
+        Shape::Sphere { radius } => (SHAPE_SPHERE, [*radius, 0.0, 0.0, 0.0]),
+        Shape::Box { half_extents: h } => (SHAPE_BOX, [h.x, h.y, h.z, 0.0]),
+        Shape::Cylinder { radius, height } => (SHAPE_CYLINDER, [*radius, *height, 0.0, 0.0]),
+        Shape::Cone { radius, height } => (SHAPE_CONE, [*radius, *height, 0.0, 0.0]),
+        Shape::Plane(PlaneKind::Quad { half_size }) => {
+            (SHAPE_QUAD, [half_size.x, half_size.y, 0.0, 0.0])
+        }
+        Shape::Plane(PlaneKind::Disk { radius }) => (SHAPE_DISK, [*radius, 0.0, 0.0, 0.0]),
+        Shape::Mesh(_) => (SHAPE_MESH, [0.0; 4]),
+    }
+}
+
+impl SceneAccel {
+    /// Builds both levels. `instance_order[i]` is the scene instance that is
+    /// GPU instance i (the raster pass's shape-sorted order).
+    pub fn build(scene: &Scene, instance_order: &[usize]) -> Result<SceneAccel, AccelError> {
+        let start = std::time::Instant::now();
+        let mut nodes = vec![bytemuck::Zeroable::zeroed()]; // slot 0: TLAS root, filled below
+        let mut triangles = Vec::new();
+        let mut shapes = Vec::new();
+        let mut object_bounds = Vec::new();
+        for (id, shape) in scene.shapes.iter().enumerate() {
+            let (kind, params) = shape_params(shape);
+            let mut gpu_shape = GpuShape {
+                params,
+                kind,
+                blas_root: 0,
+                _pad0: 0,
+                _pad1: 0,
+            };
+            let (lo, hi) = shape.bounds();
+            // Planes are flat: pad so slab tests never divide a zero-thick box.
+            let pad = Vec3::splat(1e-4 * (hi - lo).max_element().max(1e-3));
+            object_bounds.push(Aabb {
+                min: lo - pad,
+                max: hi + pad,
+            });
+            if let Shape::Mesh(mesh) = shape {
+                let tri_bounds: Vec<Aabb> = mesh
+                    .indices
+                    .chunks_exact(3)
+                    .map(|t| {
+                        t.iter().fold(Aabb::EMPTY, |b, &i| {
+                            b.grow_point(mesh.positions[i as usize])
+                        })
+                    })
+                    .collect();
+                let blas = bvh::build(&tri_bounds, MESH_LEAF);
+                if blas.depth > TRAVERSAL_STACK {
+                    return Err(AccelError::TooDeep {
+                        shape: scene.shape_names.get(id).cloned().unwrap_or_default(),
+                        depth: blas.depth,
+                        limit: TRAVERSAL_STACK,
+                    });
+                }
+                let node_base = nodes.len() as u32;
+                let tri_base = triangles.len() as u32;
+                gpu_shape.blas_root = node_base;
+                for &item in &blas.items {
+                    let t = &mesh.indices[item as usize * 3..item as usize * 3 + 3];
+                    let p = |k: usize| mesh.positions[t[k] as usize].extend(0.0).to_array();
+                    let n = |k: usize| mesh.normals[t[k] as usize].extend(0.0).to_array();
+                    triangles.push(GpuTriangle {
+                        p0: p(0),
+                        p1: p(1),
+                        p2: p(2),
+                        n0: n(0),
+                        n1: n(1),
+                        n2: n(2),
+                    });
+                }
+                nodes.extend(blas.nodes.iter().map(|n| {
+                    let mut n = *n;
+                    n.left_or_first += if n.count > 0 { tri_base } else { node_base };
+                    n
+                }));
+            }
+            shapes.push(gpu_shape);
+        }
+
+        let instances: Vec<(Mat4, Mat4, u32)> = instance_order
+            .iter()
+            .map(|&i| {
+                let inst = &scene.instances[i];
+                (
+                    inst.world_from_object,
+                    inst.world_from_object.inverse(),
+                    inst.shape as u32,
+                )
+            })
+            .collect();
+        let world_bounds: Vec<Aabb> = instances
+            .iter()
+            .map(|(m, _, s)| object_bounds[*s as usize].transformed(*m))
+            .collect();
+        let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
+        if tlas.depth > TRAVERSAL_STACK {
+            return Err(AccelError::TooDeep {
+                shape: "(top level)".into(),
+                depth: tlas.depth,
+                limit: TRAVERSAL_STACK,
+            });
+        }
+        // The TLAS goes first so its root is node 0; shift the BLAS indices.
+        let shift = tlas.nodes.len() as u32 - 1;
+        for node in nodes.iter_mut().skip(1) {
+            if node.count == 0 {
+                node.left_or_first += shift;
+            }
+        }
+        for s in &mut shapes {
+            if s.kind == SHAPE_MESH {
+                s.blas_root += shift;
+            }
+        }
+        let blas_nodes = nodes.split_off(1);
+        let mut all = tlas.nodes;
+        all.extend(blas_nodes);
+        let build_ms = start.elapsed().as_secs_f64() * 1e3;
+        log::info!(
+            "BVH build: {} shapes, {} triangles, {} instances, {} nodes, top depth {}, {build_ms:.1} ms",
+            shapes.len(),
+            triangles.len(),
+            instances.len(),
+            all.len(),
+            tlas.depth
+        );
+        Ok(SceneAccel {
+            shapes,
+            nodes: all,
+            triangles,
+            tlas_items: tlas.items,
+            instances,
+            build_ms,
+        })
+    }
+
+    /// CPU reference: the closest hit of the world ray (origin, dir) in
+    /// (t_min, t_max), by the same traversal the GPU runs.
+    pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> TraceResult {
+        let mut result = TraceResult {
+            hit: None,
+            steps: 0,
+            overflow: false,
+        };
+        let mut t_best = t_max;
+        let inv = dir.recip();
+        let mut stack = Vec::with_capacity(TRAVERSAL_STACK as usize);
+        stack.push(0u32);
+        while let Some(index) = stack.pop() {
+            result.steps += 1;
+            if result.steps > MAX_TRAVERSAL_STEPS {
+                result.overflow = true;
+                break;
+            }
+            let node = self.nodes[index as usize];
+            if intersect::ray_box(origin, inv, node.aabb().min, node.aabb().max, t_min, t_best)
+                .is_none()
+            {
+                continue;
+            }
+            if node.count == 0 {
+                push_ordered(&mut stack, &self.nodes, node.left_or_first, origin, inv);
+                continue;
+            }
+            for slot in node.left_or_first..node.left_or_first + node.count {
+                let instance = self.tlas_items[slot as usize];
+                let (world_from_object, object_from_world, shape) =
+                    self.instances[instance as usize];
+                let o = object_from_world.transform_point3(origin);
+                let d = object_from_world.transform_vector3(dir);
+                if let Some(h) = self.intersect_shape(shape, o, d, t_min, t_best, &mut result) {
+                    t_best = h.t;
+                    let to_world = world_from_object.inverse().transpose();
+                    result.hit = Some(Hit {
+                        t: h.t,
+                        instance,
+                        normal: to_world.transform_vector3(h.normal).normalize(),
+                        geometric: to_world.transform_vector3(h.geometric).normalize(),
+                    });
+                }
+                if result.overflow {
+                    return result;
+                }
+            }
+        }
+        result
+    }
+
+    fn intersect_shape(
+        &self,
+        shape: u32,
+        o: Vec3,
+        d: Vec3,
+        t_min: f32,
+        t_max: f32,
+        result: &mut TraceResult,
+    ) -> Option<intersect::ObjectHit> {
+        let s = self.shapes[shape as usize];
+        if s.kind != SHAPE_MESH {
+            return intersect::analytic(s.kind, s.params, o, d, t_min, t_max);
+        }
+        let inv = d.recip();
+        let mut best: Option<intersect::ObjectHit> = None;
+        let mut t_best = t_max;
+        let mut stack = vec![s.blas_root];
+        while let Some(index) = stack.pop() {
+            result.steps += 1;
+            if result.steps > MAX_TRAVERSAL_STEPS {
+                result.overflow = true;
+                return best;
+            }
+            let node = self.nodes[index as usize];
+            if intersect::ray_box(o, inv, node.aabb().min, node.aabb().max, t_min, t_best).is_none()
+            {
+                continue;
+            }
+            if node.count == 0 {
+                push_ordered(&mut stack, &self.nodes, node.left_or_first, o, inv);
+                continue;
+            }
+            for k in node.left_or_first..node.left_or_first + node.count {
+                if let Some(h) =
+                    intersect::triangle(o, d, &self.triangles[k as usize], t_min, t_best)
+                {
+                    t_best = h.t;
+                    best = Some(h);
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Pushes the two children of an inner node, the nearer one last (popped
+/// first). Children the ray misses are still pushed; the pop tests them.
+fn push_ordered(stack: &mut Vec<u32>, nodes: &[BvhNode], left: u32, o: Vec3, inv: Vec3) {
+    let entry = |i: u32| {
+        let b = nodes[i as usize].aabb();
+        intersect::ray_box(o, inv, b.min, b.max, 0.0, f32::MAX).unwrap_or(f32::MAX)
+    };
+    if entry(left) <= entry(left + 1) {
+        stack.push(left + 1);
+        stack.push(left);
+    } else {
+        stack.push(left);
+        stack.push(left + 1);
+    }
+}
+
+/// A world-space hit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    /// GPU instance index.
+    pub instance: u32,
+    /// Unit shading normal (outward, not flipped towards the ray).
+    pub normal: Vec3,
+    /// Unit geometric normal (outward).
+    pub geometric: Vec3,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraceResult {
+    pub hit: Option<Hit>,
+    /// Loop iterations taken (nodes visited at both levels).
+    pub steps: u32,
+    /// True when the query gave up at MAX_TRAVERSAL_STEPS.
+    pub overflow: bool,
+}
