@@ -9,7 +9,7 @@ use clap::{Args, Parser, Subcommand};
 
 use celray::capture::{self, OutputFormat};
 use celray::gpu::{AdapterChoice, Gpu};
-use celray::render::{RenderSettings, ToneMap};
+use celray::render::{RenderMode, RenderSettings, ToneMap};
 use celray::sampling::PixelPattern;
 use celray::scene::{parse_shading_model, Scene};
 
@@ -63,6 +63,12 @@ struct RenderArgs {
     /// Override every material: blinn-phong, toon (4 bands) or toon:N.
     #[arg(long)]
     shading: Option<String>,
+    /// How primary visibility is found: raster, hybrid or raytrace.
+    #[arg(long, default_value = "hybrid")]
+    mode: String,
+    /// Mirror reflection bounces after the primary hit (hybrid, raytrace).
+    #[arg(long, default_value_t = 3)]
+    max_bounces: u32,
     /// Tone mapping: clamp or reinhard.
     #[arg(long, default_value = "clamp")]
     tone_map: String,
@@ -157,6 +163,13 @@ fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
             args.pattern
         )
     })?;
+    settings.mode = RenderMode::parse(&args.mode).with_context(|| {
+        format!(
+            "--mode {:?}: expected raster, hybrid or raytrace",
+            args.mode
+        )
+    })?;
+    settings.max_bounces = args.max_bounces;
     settings.tone_map = ToneMap::parse(&args.tone_map)
         .with_context(|| format!("--tone-map {:?}: expected clamp or reinhard", args.tone_map))?;
 

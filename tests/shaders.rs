@@ -74,7 +74,12 @@ fn twins_match_wgsl_layouts() {
             sample_index,
             jitter_px,
             max_outline_px,
-            seed
+            seed,
+            world_from_clip,
+            mode,
+            max_bounces,
+            ray_epsilon,
+            _pad
         }
     );
     check_twin!(
@@ -114,6 +119,49 @@ fn twins_match_wgsl_layouts() {
             _pad
         }
     );
+    let trace = parse("trace.wgsl");
+    check_twin!(
+        trace,
+        BvhNode {
+            bounds_min,
+            left_or_first,
+            bounds_max,
+            count
+        }
+    );
+    check_twin!(
+        trace,
+        GpuTriangle {
+            p0,
+            p1,
+            p2,
+            n0,
+            n1,
+            n2
+        }
+    );
+    check_twin!(
+        trace,
+        GpuShape {
+            params,
+            kind,
+            blas_root,
+            _pad0,
+            _pad1
+        }
+    );
+    check_twin!(trace, GpuRay { origin, dir });
+    check_twin!(
+        trace,
+        GpuHit {
+            normal,
+            t,
+            instance,
+            steps,
+            overflow,
+            _pad
+        }
+    );
     check_twin!(
         module,
         ResolveUniforms {
@@ -146,9 +194,39 @@ fn constants_and_workgroup_sizes_match() {
         ("MAX_TOON_BANDS", MAX_TOON_BANDS),
         ("TONE_MAP_CLAMP", TONE_MAP_CLAMP),
         ("TONE_MAP_REINHARD", TONE_MAP_REINHARD),
+        ("RENDER_MODE_RASTER", RENDER_MODE_RASTER),
+        ("RENDER_MODE_HYBRID", RENDER_MODE_HYBRID),
+        ("RENDER_MODE_RAYTRACE", RENDER_MODE_RAYTRACE),
     ] {
         assert_eq!(wgsl_u32_constant(&module, name), value, "{name}");
     }
+    let trace = parse("trace.wgsl");
+    for (name, value) in [
+        ("SHAPE_SPHERE", SHAPE_SPHERE),
+        ("SHAPE_BOX", SHAPE_BOX),
+        ("SHAPE_CYLINDER", SHAPE_CYLINDER),
+        ("SHAPE_CONE", SHAPE_CONE),
+        ("SHAPE_QUAD", SHAPE_QUAD),
+        ("SHAPE_DISK", SHAPE_DISK),
+        ("SHAPE_MESH", SHAPE_MESH),
+        ("TRAVERSAL_STACK", TRAVERSAL_STACK),
+        ("MAX_TRAVERSAL_STEPS", MAX_TRAVERSAL_STEPS),
+    ] {
+        assert_eq!(wgsl_u32_constant(&trace, name), value, "{name}");
+    }
+    let main = trace
+        .entry_points
+        .iter()
+        .find(|e| e.name == "main")
+        .expect("trace main");
+    assert_eq!(main.workgroup_size, [TRACE_WORKGROUP, TRACE_WORKGROUP, 1]);
+    let batch = parse("ray_batch.wgsl");
+    let main = batch
+        .entry_points
+        .iter()
+        .find(|e| e.name == "main")
+        .expect("ray batch main");
+    assert_eq!(main.workgroup_size, [RAY_BATCH_WORKGROUP, 1, 1]);
     assert_eq!(MAX_TOON_BANDS, celray::scene::MAX_TOON_BANDS);
     let accumulate = parse("accumulate.wgsl");
     let entry = accumulate

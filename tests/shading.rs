@@ -5,6 +5,7 @@ mod common;
 
 use std::collections::BTreeSet;
 
+use celray::render::{RenderMode, RenderSettings};
 use common::*;
 use glam::{Vec2, Vec3};
 
@@ -27,10 +28,19 @@ fn band_scene(bands: u32) -> String {
 fn toon_sphere_shows_n_bands_with_edges_where_n_dot_l_crosses_thresholds() {
     let gpu = gpu();
     let base = Vec3::new(0.9, 0.6, 0.3);
-    for bands in [2u32, 4, 7] {
+    for (bands, mode) in [2u32, 4, 7]
+        .into_iter()
+        .flat_map(|b| RenderMode::ALL.map(|m| (b, m)))
+    {
         let scene = scene(&band_scene(bands));
         let (w, h) = (scene.camera.width, scene.camera.height);
-        let (img, ids) = render(&gpu, scene.clone(), pixel_centre_settings(&scene));
+        let settings = RenderSettings {
+            mode,
+            ..pixel_centre_settings(&scene)
+        };
+        let (img, ids) = render(&gpu, scene.clone(), settings);
+        let bands_label = format!("{bands} bands, {} mode", mode.name());
+        let bands_label = bands_label.as_str();
 
         // Band b's colour: base * (b + 1) / N, sRGB-encoded.
         let band_colours: Vec<[u8; 3]> = (0..bands)
@@ -56,7 +66,7 @@ fn toon_sphere_shows_n_bands_with_edges_where_n_dot_l_crosses_thresholds() {
                 if ids[(y * w + x) as usize] != 0 {
                     let rgb = rgb_at(&img, w, x, y);
                     let band = band_of(rgb).unwrap_or_else(|| {
-                        panic!("{bands} bands: colour {rgb:?} at ({x},{y}) is no band's")
+                        panic!("{bands_label}: colour {rgb:?} at ({x},{y}) is no band's")
                     });
                     seen.insert(band);
                 }
@@ -65,7 +75,7 @@ fn toon_sphere_shows_n_bands_with_edges_where_n_dot_l_crosses_thresholds() {
         assert_eq!(
             seen,
             (0..bands as usize).collect::<BTreeSet<_>>(),
-            "{bands} bands: bands seen on the sphere"
+            "{bands_label}: bands seen on the sphere"
         );
 
         // 2. Along the middle scanline, each change of band sits where the
@@ -99,14 +109,14 @@ fn toon_sphere_shows_n_bands_with_edges_where_n_dot_l_crosses_thresholds() {
             let edge_image = (x + 1) as f32; // between pixel x and x + 1
             assert!(
                 (edge_image - edge_analytic).abs() <= 1.5,
-                "{bands} bands, threshold {threshold}: edge at x = {edge_image}, analytic {edge_analytic}"
+                "{bands_label}, threshold {threshold}: edge at x = {edge_image}, analytic {edge_analytic}"
             );
             checked += 1;
         }
         assert_eq!(
             checked,
             (bands - 1) as usize,
-            "{bands} bands: every band edge found on the scanline"
+            "{bands_label}: every band edge found on the scanline"
         );
     }
 }
@@ -127,72 +137,81 @@ fn blinn_phong_matches_cpu_formula() {
     )"#;
     let scene = scene(ron);
     let (w, h) = (scene.camera.width, scene.camera.height);
-    let (img, _) = render(&gpu, scene.clone(), pixel_centre_settings(&scene));
-
-    let kd = Vec3::new(0.6, 0.3, 0.2);
-    let ks = Vec3::splat(0.5);
-    let ambient = Vec3::splat(0.05);
-    let sun_to_light = -Vec3::new(-1.0, -1.0, -1.0).normalize();
-    let sun = Vec3::new(1.0, 0.9, 0.8) * 0.8;
-    let point_pos = Vec3::new(-2.0, 3.0, 4.0);
-    let point = Vec3::new(0.6, 0.7, 1.0) * 15.0;
-    let eye = scene.camera.eye;
-    let term = |n: Vec3, v: Vec3, l: Vec3, radiance: Vec3| {
-        let n_dot_l = n.dot(l);
-        let hv = (l + v).normalize();
-        let spec = if n_dot_l > 0.0 {
-            n.dot(hv).max(0.0).powf(20.0)
-        } else {
-            0.0
+    for mode in RenderMode::ALL {
+        let settings = RenderSettings {
+            mode,
+            ..pixel_centre_settings(&scene)
         };
-        (kd * n_dot_l.max(0.0) + ks * spec) * radiance
-    };
+        let (img, _) = render(&gpu, scene.clone(), settings);
 
-    let mut compared = 0;
-    let mut worst = 0i32;
-    // A 12 x 12 grid of pixels; those whose pixel centre hits the sphere at
-    // least 3 px inside the silhouette are compared (the 1 px tessellation
-    // margin is far smaller: 192 segments sag 1e-4 of the radius).
-    for gy in 0..12 {
-        for gx in 0..12 {
-            let (x, y) = (30 + gx * 12, 30 + gy * 12);
-            let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            let inside = (-3..=3).all(|d| {
-                ray_sphere(&scene, centre + Vec2::new(d as f32, 0.0), Vec3::ZERO, 1.0).is_some()
-                    && ray_sphere(&scene, centre + Vec2::new(0.0, d as f32), Vec3::ZERO, 1.0)
-                        .is_some()
-            });
-            if !inside {
-                continue;
+        let kd = Vec3::new(0.6, 0.3, 0.2);
+        let ks = Vec3::splat(0.5);
+        let ambient = Vec3::splat(0.05);
+        let sun_to_light = -Vec3::new(-1.0, -1.0, -1.0).normalize();
+        let sun = Vec3::new(1.0, 0.9, 0.8) * 0.8;
+        let point_pos = Vec3::new(-2.0, 3.0, 4.0);
+        let point = Vec3::new(0.6, 0.7, 1.0) * 15.0;
+        let eye = scene.camera.eye;
+        let term = |n: Vec3, v: Vec3, l: Vec3, radiance: Vec3| {
+            let n_dot_l = n.dot(l);
+            let hv = (l + v).normalize();
+            let spec = if n_dot_l > 0.0 {
+                n.dot(hv).max(0.0).powf(20.0)
+            } else {
+                0.0
+            };
+            (kd * n_dot_l.max(0.0) + ks * spec) * radiance
+        };
+
+        let mut compared = 0;
+        let mut worst = 0i32;
+        // A 12 x 12 grid of pixels; those whose pixel centre hits the sphere at
+        // least 3 px inside the silhouette are compared (the 1 px tessellation
+        // margin is far smaller: 192 segments sag 1e-4 of the radius).
+        for gy in 0..12 {
+            for gx in 0..12 {
+                let (x, y) = (30 + gx * 12, 30 + gy * 12);
+                let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let inside = (-3..=3).all(|d| {
+                    ray_sphere(&scene, centre + Vec2::new(d as f32, 0.0), Vec3::ZERO, 1.0).is_some()
+                        && ray_sphere(&scene, centre + Vec2::new(0.0, d as f32), Vec3::ZERO, 1.0)
+                            .is_some()
+                });
+                if !inside {
+                    continue;
+                }
+                let p = ray_sphere(&scene, centre, Vec3::ZERO, 1.0).unwrap();
+                let n = p.normalize();
+                let v = (eye - p).normalize();
+                let to_point = point_pos - p;
+                let c = ambient * kd
+                    + term(n, v, sun_to_light, sun)
+                    + term(
+                        n,
+                        v,
+                        to_point.normalize(),
+                        point / to_point.length_squared(),
+                    );
+                let expected = [srgb8(c.x), srgb8(c.y), srgb8(c.z)];
+                let got = rgb_at(&img, w, x, y);
+                for ch in 0..3 {
+                    let diff = (i32::from(got[ch]) - i32::from(expected[ch])).abs();
+                    worst = worst.max(diff);
+                    assert!(
+                        diff <= 2,
+                        "pixel ({x},{y}): got {got:?}, CPU formula {expected:?}"
+                    );
+                }
+                compared += 1;
             }
-            let p = ray_sphere(&scene, centre, Vec3::ZERO, 1.0).unwrap();
-            let n = p.normalize();
-            let v = (eye - p).normalize();
-            let to_point = point_pos - p;
-            let c = ambient * kd
-                + term(n, v, sun_to_light, sun)
-                + term(
-                    n,
-                    v,
-                    to_point.normalize(),
-                    point / to_point.length_squared(),
-                );
-            let expected = [srgb8(c.x), srgb8(c.y), srgb8(c.z)];
-            let got = rgb_at(&img, w, x, y);
-            for ch in 0..3 {
-                let diff = (i32::from(got[ch]) - i32::from(expected[ch])).abs();
-                worst = worst.max(diff);
-                assert!(
-                    diff <= 2,
-                    "pixel ({x},{y}): got {got:?}, CPU formula {expected:?}"
-                );
-            }
-            compared += 1;
         }
+        let _ = h;
+        assert!(compared >= 50, "only {compared} pixels compared");
+        eprintln!(
+            "Blinn-Phong, {} mode: {compared} pixels, worst channel difference {worst}/255",
+            mode.name()
+        );
     }
-    let _ = h;
-    assert!(compared >= 50, "only {compared} pixels compared");
-    eprintln!("Blinn-Phong: {compared} pixels, worst channel difference {worst}/255");
 }
 
 /// A toon sphere with a magenta outline of 3 px on black: along the middle
@@ -215,7 +234,11 @@ fn outline_width_is_in_pixels_at_any_resolution() {
             )"#
         );
         let scene = scene(&ron);
-        let (img, ids) = render(&gpu, scene.clone(), pixel_centre_settings(&scene));
+        let settings = RenderSettings {
+            mode: RenderMode::Raster,
+            ..pixel_centre_settings(&scene)
+        };
+        let (img, ids) = render(&gpu, scene.clone(), settings);
         let y = size / 2;
         let first_sphere = (0..size)
             .find(|&x| ids[(y * size + x) as usize] != 0)

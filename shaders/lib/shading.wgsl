@@ -58,6 +58,16 @@ fn shade_light(m: GpuMaterial, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, radianc
     return (m.base_color * max(n_dot_l, 0.0) + m.specular_color * spec) * radiance;
 }
 
+// A light's contribution where it is blocked: what shade_light gives a
+// surface facing away from it (toon: the darkest band; Blinn-Phong: none),
+// so a cast shadow looks like the unlit side.
+fn shade_light_blocked(m: GpuMaterial, radiance: vec3<f32>) -> vec3<f32> {
+    if m.model == SHADING_TOON {
+        return m.base_color * toon_level(m, 0.0) * radiance;
+    }
+    return vec3<f32>(0.0);
+}
+
 // The light-independent part: ambient * kd, plus the toon rim light.
 fn shade_ambient(m: GpuMaterial, n: vec3<f32>, v: vec3<f32>, ambient: vec3<f32>) -> vec3<f32> {
     var c = ambient * m.base_color;

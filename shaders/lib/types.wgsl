@@ -18,7 +18,21 @@ struct FrameUniforms {
     // Widest outline of any material, in pixels: the outline search radius.
     max_outline_px: f32,
     seed: u32,
+    // Inverse of clip_from_world: unprojects pixel centres into the same
+    // primary rays the rasterizer samples.
+    world_from_clip: mat4x4<f32>,
+    // RENDER_MODE_*: which passes find primary visibility.
+    mode: u32,
+    // Mirror bounces after the primary hit.
+    max_bounces: u32,
+    // Offset of secondary ray origins along the normal (scene-scaled).
+    ray_epsilon: f32,
+    _pad: u32,
 }
+
+const RENDER_MODE_RASTER: u32 = 0u;
+const RENDER_MODE_HYBRID: u32 = 1u;
+const RENDER_MODE_RAYTRACE: u32 = 2u;
 
 // A light: w of position_or_direction is 0 for a directional light (xyz is
 // the direction the light travels) and 1 for a point light (xyz = position).
@@ -74,4 +88,48 @@ struct ResolveUniforms {
     // 1 when the target is not an sRGB format, so the shader encodes.
     encode_srgb: u32,
     exposure: f32,
+}
+
+// A node of a bounding volume hierarchy: a leaf (count > 0) holds items
+// left_or_first .. left_or_first + count; an inner node's children are
+// nodes left_or_first and left_or_first + 1.
+struct BvhNode {
+    bounds_min: vec3<f32>,
+    left_or_first: u32,
+    bounds_max: vec3<f32>,
+    count: u32,
+}
+
+// A mesh triangle in object space with its vertex normals (w unused).
+struct GpuTriangle {
+    p0: vec4<f32>,
+    p1: vec4<f32>,
+    p2: vec4<f32>,
+    n0: vec4<f32>,
+    n1: vec4<f32>,
+    n2: vec4<f32>,
+}
+
+// A base shape: SHAPE_* kind, parameters (radius, half extents, height),
+// and for meshes the root node of its bottom-level BVH.
+struct GpuShape {
+    params: vec4<f32>,
+    kind: u32,
+    blas_root: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+struct GpuRay {
+    origin: vec4<f32>,
+    dir: vec4<f32>,
+}
+
+struct GpuHit {
+    normal: vec3<f32>,
+    t: f32,
+    instance: u32,
+    steps: u32,
+    overflow: u32,
+    _pad: u32,
 }

@@ -97,7 +97,7 @@ impl SceneAccel {
                     })
                     .collect();
                 let blas = bvh::build(&tri_bounds, MESH_LEAF);
-                if blas.depth > TRAVERSAL_STACK {
+                if blas.depth + 2 > TRAVERSAL_STACK {
                     return Err(AccelError::TooDeep {
                         shape: scene.shape_names.get(id).cloned().unwrap_or_default(),
                         depth: blas.depth,
@@ -145,7 +145,7 @@ impl SceneAccel {
             .map(|(m, _, s)| object_bounds[*s as usize].transformed(*m))
             .collect();
         let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
-        if tlas.depth > TRAVERSAL_STACK {
+        if tlas.depth + 2 > TRAVERSAL_STACK {
             return Err(AccelError::TooDeep {
                 shape: "(top level)".into(),
                 depth: tlas.depth,

@@ -18,12 +18,25 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         "lib/shading.wgsl",
         include_str!("../../shaders/lib/shading.wgsl"),
     ),
+    (
+        "lib/intersect.wgsl",
+        include_str!("../../shaders/lib/intersect.wgsl"),
+    ),
+    (
+        "lib/traverse.wgsl",
+        include_str!("../../shaders/lib/traverse.wgsl"),
+    ),
     ("raster.wgsl", include_str!("../../shaders/raster.wgsl")),
     (
         "accumulate.wgsl",
         include_str!("../../shaders/accumulate.wgsl"),
     ),
     ("resolve.wgsl", include_str!("../../shaders/resolve.wgsl")),
+    ("trace.wgsl", include_str!("../../shaders/trace.wgsl")),
+    (
+        "ray_batch.wgsl",
+        include_str!("../../shaders/ray_batch.wgsl"),
+    ),
 ];
 
 /// The pass files (those that are not include-only pieces).

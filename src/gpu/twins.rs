@@ -26,7 +26,16 @@ pub struct FrameUniforms {
     pub jitter_px: [f32; 2],
     pub max_outline_px: f32,
     pub seed: u32,
+    pub world_from_clip: [[f32; 4]; 4],
+    pub mode: u32,
+    pub max_bounces: u32,
+    pub ray_epsilon: f32,
+    pub _pad: u32,
 }
+
+pub const RENDER_MODE_RASTER: u32 = 0;
+pub const RENDER_MODE_HYBRID: u32 = 1;
+pub const RENDER_MODE_RAYTRACE: u32 = 2;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -144,7 +153,8 @@ pub struct GpuShape {
     pub _pad1: u32,
 }
 
-/// A ray for the ray-batch kernel (tests and benchmarks).
+/// A ray for the ray-batch kernel (tests and benchmarks): `origin.w` is
+/// t_min and `dir.w` is t_max.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuRay {

@@ -5,12 +5,12 @@ use crate::gpu::twins::ACCUMULATE_WORKGROUP;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::raster::{read_only_storage_entry, uniform_entry};
 use crate::render::scene_buffers::SceneBuffers;
-use crate::render::targets::Targets;
+use crate::render::targets::{GBuffer, Targets};
 
 pub struct AccumulatePass {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
-    bind_group: Option<wgpu::BindGroup>,
+    bind_groups: Option<[wgpu::BindGroup; 2]>,
 }
 
 fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
@@ -75,11 +75,13 @@ impl AccumulatePass {
             AccumulatePass {
                 pipeline,
                 layout,
-                bind_group: None,
+                bind_groups: None,
             }
         })
     }
 
+    /// Two bind groups: one reading the raster G-buffer (raster mode), one
+    /// reading the traced G-buffer (hybrid and raytrace modes).
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
@@ -87,47 +89,54 @@ impl AccumulatePass {
         scene: &SceneBuffers,
         targets: &Targets,
     ) {
-        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("accumulate bind group"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: scene.instances.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: scene.materials.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::TextureView(&view(&targets.color)),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: wgpu::BindingResource::TextureView(&view(&targets.normal_depth)),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: wgpu::BindingResource::TextureView(&view(&targets.id)),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: targets.accum.as_entire_binding(),
-                },
-            ],
-        }));
+        let group = |label, g: &GBuffer| {
+            let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+            gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: frame.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: scene.instances.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: scene.materials.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: wgpu::BindingResource::TextureView(&view(&g.color)),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 4,
+                        resource: wgpu::BindingResource::TextureView(&view(&g.normal_depth)),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 5,
+                        resource: wgpu::BindingResource::TextureView(&view(&g.id)),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 6,
+                        resource: targets.accum.as_entire_binding(),
+                    },
+                ],
+            })
+        };
+        self.bind_groups = Some([
+            group("accumulate bind group (raster)", &targets.raster),
+            group("accumulate bind group (traced)", &targets.traced),
+        ]);
     }
 
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
+        traced: bool,
         timer: Option<&PassTimer>,
     ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -135,7 +144,8 @@ impl AccumulatePass {
             timestamp_writes: timer.map(|t| t.compute_writes("accumulate")),
         });
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
+        let groups = self.bind_groups.as_ref();
+        pass.set_bind_group(0, groups.map(|g| &g[usize::from(traced)]), &[]);
         pass.dispatch_workgroups(
             targets.width.div_ceil(ACCUMULATE_WORKGROUP),
             targets.height.div_ceil(ACCUMULATE_WORKGROUP),

@@ -10,10 +10,12 @@
 pub mod accumulate;
 pub mod camera;
 pub mod raster;
+pub mod ray_batch;
 pub mod resolve;
 pub mod scene_buffers;
 pub mod settings;
 pub mod targets;
+pub mod trace;
 
 use wgpu::util::DeviceExt;
 
@@ -26,11 +28,12 @@ use accumulate::AccumulatePass;
 use raster::RasterPass;
 use resolve::ResolvePass;
 use scene_buffers::SceneBuffers;
-pub use settings::{RenderSettings, ToneMap};
+pub use settings::{RenderMode, RenderSettings, ToneMap};
 use targets::Targets;
+use trace::TracePass;
 
 /// The passes [`Renderer::pass_times`] reports, in order.
-pub const PASS_NAMES: [&str; 2] = ["raster", "accumulate"];
+pub const PASS_NAMES: [&str; 3] = ["raster", "trace", "accumulate"];
 
 pub struct Renderer {
     scene: Scene,
@@ -39,6 +42,7 @@ pub struct Renderer {
     targets: Targets,
     frame: wgpu::Buffer,
     raster: RasterPass,
+    trace: TracePass,
     accumulate: AccumulatePass,
     capture_resolve: ResolvePass,
     /// Samples in the accumulator; 0 after any change.
@@ -67,6 +71,7 @@ impl Renderer {
             });
         let mut renderer = Renderer {
             raster: RasterPass::new(gpu)?,
+            trace: TracePass::new(gpu)?,
             accumulate: AccumulatePass::new(gpu)?,
             capture_resolve: ResolvePass::new(gpu, targets::CAPTURE_FORMAT)?,
             scene,
@@ -83,6 +88,8 @@ impl Renderer {
 
     fn bind(&mut self, gpu: &Gpu) {
         self.raster.prepare(gpu, &self.frame, &self.buffers);
+        self.trace
+            .prepare(gpu, &self.frame, &self.buffers, &self.targets);
         self.accumulate
             .prepare(gpu, &self.frame, &self.buffers, &self.targets);
         self.capture_resolve
@@ -149,6 +156,10 @@ impl Renderer {
         let offset = pixel_offset(s.pattern, k, s.spp, s.seed);
         let depth = camera::depth_range(cam, self.scene.bounds());
         let sc = camera::sample_camera(cam, (s.width, s.height), offset, depth);
+        let (lo, hi) = self.scene.bounds();
+        let scene_radius = ((hi - lo).length() * 0.5).max(1e-3);
+        // Inverted in f64: the projection's near/far ratio is large.
+        let world_from_clip = sc.clip_from_world.as_dmat4().inverse().as_mat4();
         let max_outline = self
             .scene
             .materials
@@ -168,6 +179,11 @@ impl Renderer {
             jitter_px: (offset - glam::Vec2::splat(0.5)).to_array(),
             max_outline_px: max_outline,
             seed: s.seed,
+            world_from_clip: world_from_clip.to_cols_array_2d(),
+            mode: s.mode.to_gpu(),
+            max_bounces: s.max_bounces,
+            ray_epsilon: scene_radius * 1e-4,
+            _pad: 0,
         }
     }
 
@@ -188,14 +204,21 @@ impl Renderer {
             uniforms.background[2],
         ];
         let timer = self.timer.as_ref();
+        let mode = self.settings.mode;
         self.raster.encode(
             &mut encoder,
             &self.targets,
             &self.buffers,
             background,
+            mode,
             timer,
         );
-        self.accumulate.encode(&mut encoder, &self.targets, timer);
+        let traced = mode != RenderMode::Raster;
+        if traced {
+            self.trace.encode(&mut encoder, &self.targets, timer);
+        }
+        self.accumulate
+            .encode(&mut encoder, &self.targets, traced, timer);
         if let Some(t) = timer {
             t.resolve(&mut encoder);
         }
@@ -299,10 +322,21 @@ impl Renderer {
             .collect())
     }
 
+    /// Pixels (summed over samples) whose ray traversal ran out of its step
+    /// budget and were painted magenta: 0 unless a scene is too deep.
+    pub fn overflow_pixels(&self, gpu: &Gpu) -> Result<u32, GpuError> {
+        self.trace.overflow_pixels(gpu)
+    }
+
     /// The G-buffer's id target: 0 for background, else GPU instance + 1
     /// (see [`SceneBuffers::instance_order`]). For tests and picking.
     pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
-        let bytes = readback::read_texture(gpu, &self.targets.id, 4)?;
+        let g = if self.settings.mode == RenderMode::Raster {
+            &self.targets.raster
+        } else {
+            &self.targets.traced
+        };
+        let bytes = readback::read_texture(gpu, &g.id, 4)?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 }

@@ -4,6 +4,7 @@ use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::Vertex;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::scene_buffers::{Cull, SceneBuffers};
+use crate::render::settings::RenderMode;
 use crate::render::targets::{Targets, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 
 pub struct RasterPass {
@@ -162,13 +163,14 @@ impl RasterPass {
         targets: &Targets,
         scene: &SceneBuffers,
         background: [f32; 3],
+        mode: RenderMode,
         timer: Option<&PassTimer>,
     ) {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (color, normal_depth, id, depth) = (
-            view(&targets.color),
-            view(&targets.normal_depth),
-            view(&targets.id),
+            view(&targets.raster.color),
+            view(&targets.raster.normal_depth),
+            view(&targets.raster.id),
             view(&targets.depth),
         );
         let clear = |c: wgpu::Color| wgpu::Operations {
@@ -219,7 +221,14 @@ impl RasterPass {
         pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
-        for d in &scene.draws {
+        // Raster mode draws everything; hybrid only meshes (the trace pass
+        // finds analytic shapes exactly); raytrace nothing (only the clears).
+        let drawn = |d: &&crate::render::scene_buffers::Draw| match mode {
+            RenderMode::Raster => true,
+            RenderMode::Hybrid => d.is_mesh,
+            RenderMode::Raytrace => false,
+        };
+        for d in scene.draws.iter().filter(drawn) {
             pass.set_pipeline(
                 &self.pipelines[match d.cull {
                     Cull::Back => 0,

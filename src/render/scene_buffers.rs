@@ -5,6 +5,7 @@
 use glam::Mat4;
 use wgpu::util::DeviceExt;
 
+use crate::accel::SceneAccel;
 use crate::gpu::twins::{
     GpuInstance, GpuLight, GpuMaterial, Vertex, MAX_TOON_BANDS, SHADING_BLINN_PHONG, SHADING_TOON,
 };
@@ -25,6 +26,8 @@ pub enum Cull {
 #[derive(Debug, Clone)]
 pub struct Draw {
     pub shape: usize,
+    /// A triangle mesh from a file (hybrid mode rasterizes only these).
+    pub is_mesh: bool,
     pub cull: Cull,
     pub first_index: u32,
     pub index_count: u32,
@@ -43,6 +46,12 @@ pub struct SceneBuffers {
     /// `instance_order[i]` is the scene instance drawn as GPU instance i.
     pub instance_order: Vec<usize>,
     pub triangle_count: u64,
+    /// The ray tracer's view of the scene (CPU copy kept for tests).
+    pub accel: SceneAccel,
+    pub shapes: wgpu::Buffer,
+    pub nodes: wgpu::Buffer,
+    pub triangles: wgpu::Buffer,
+    pub tlas_items: wgpu::Buffer,
 }
 
 /// The GPU form of a material.
@@ -212,6 +221,7 @@ impl SceneBuffers {
                         .count() as u32;
                 draws.push(Draw {
                     shape: shape_id,
+                    is_mesh: matches!(shape, Shape::Mesh(_)),
                     cull,
                     first_index: indices.len() as u32,
                     index_count: mesh.indices.len() as u32,
@@ -269,7 +279,42 @@ impl SceneBuffers {
             binding_limit,
         )?;
 
+        let accel = SceneAccel::build(scene, &order).map_err(|e| GpuError::Limit {
+            what: e.to_string(),
+            value: 0,
+            limit: 0,
+        })?;
+        let mut triangles = accel.triangles.clone();
+        if triangles.is_empty() {
+            triangles.push(bytemuck::Zeroable::zeroed());
+        }
+        let mut shapes = accel.shapes.clone();
+        if shapes.is_empty() {
+            shapes.push(bytemuck::Zeroable::zeroed());
+        }
+        let mut tlas_items = accel.tlas_items.clone();
+        if tlas_items.is_empty() {
+            tlas_items.push(0);
+        }
+        for (what, bytes) in [
+            (
+                "BVH node buffer (bytes)",
+                accel.nodes.len() * std::mem::size_of::<crate::gpu::twins::BvhNode>(),
+            ),
+            (
+                "triangle buffer (bytes)",
+                triangles.len() * std::mem::size_of::<crate::gpu::twins::GpuTriangle>(),
+            ),
+        ] {
+            check_limit(what, bytes as u64, binding_limit)?;
+        }
+
         gpu.scoped(|| SceneBuffers {
+            shapes: storage_buffer(gpu, "scene shapes", &shapes),
+            nodes: storage_buffer(gpu, "scene BVH nodes", &accel.nodes),
+            triangles: storage_buffer(gpu, "scene triangles", &triangles),
+            tlas_items: storage_buffer(gpu, "scene top-level items", &tlas_items),
+            accel,
             vertices: gpu
                 .device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {

@@ -1,6 +1,9 @@
 //! User-facing render settings, and their GPU twins filled in `to_gpu`.
 
-use crate::gpu::twins::{ResolveUniforms, TONE_MAP_CLAMP, TONE_MAP_REINHARD};
+use crate::gpu::twins::{
+    ResolveUniforms, RENDER_MODE_HYBRID, RENDER_MODE_RASTER, RENDER_MODE_RAYTRACE, TONE_MAP_CLAMP,
+    TONE_MAP_REINHARD,
+};
 use crate::sampling::PixelPattern;
 
 /// How linear radiance becomes a displayable value in [0, 1].
@@ -24,6 +27,44 @@ impl ToneMap {
     }
 }
 
+/// Which passes find what each pixel sees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RenderMode {
+    /// Rasterize everything (analytic shapes tessellated); no ray tracing,
+    /// so no shadows or reflections.
+    Raster,
+    /// Meshes rasterized, analytic shapes ray-traced exactly and composited
+    /// by depth; shadows and reflections traced against everything.
+    #[default]
+    Hybrid,
+    /// Ray-trace everything: the reference hybrid is tested against.
+    Raytrace,
+}
+
+impl RenderMode {
+    pub const ALL: [RenderMode; 3] = [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            RenderMode::Raster => "raster",
+            RenderMode::Hybrid => "hybrid",
+            RenderMode::Raytrace => "raytrace",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<RenderMode> {
+        Self::ALL.into_iter().find(|m| m.name() == text)
+    }
+
+    pub fn to_gpu(self) -> u32 {
+        match self {
+            RenderMode::Raster => RENDER_MODE_RASTER,
+            RenderMode::Hybrid => RENDER_MODE_HYBRID,
+            RenderMode::Raytrace => RENDER_MODE_RAYTRACE,
+        }
+    }
+}
+
 /// Everything about how a scene is rendered that is not the scene itself.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderSettings {
@@ -39,6 +80,9 @@ pub struct RenderSettings {
     pub tone_map: ToneMap,
     /// Linear scale applied before tone mapping.
     pub exposure: f32,
+    pub mode: RenderMode,
+    /// Mirror reflection bounces after the primary hit (ray modes).
+    pub max_bounces: u32,
 }
 
 impl Default for RenderSettings {
@@ -51,6 +95,8 @@ impl Default for RenderSettings {
             pattern: PixelPattern::Jittered,
             tone_map: ToneMap::Clamp,
             exposure: 1.0,
+            mode: RenderMode::Hybrid,
+            max_bounces: 3,
         }
     }
 }

@@ -4,17 +4,25 @@
 use crate::gpu::{Gpu, GpuError};
 
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
-pub const NORMAL_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+pub const NORMAL_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
-pub struct Targets {
-    pub width: u32,
-    pub height: u32,
+/// The G-buffer: shaded colour, world normal + view depth, instance id + 1.
+pub struct GBuffer {
     pub color: wgpu::Texture,
     pub normal_depth: wgpu::Texture,
     pub id: wgpu::Texture,
+}
+
+pub struct Targets {
+    pub width: u32,
+    pub height: u32,
+    /// Written by the raster pass.
+    pub raster: GBuffer,
+    /// Written by the trace pass (hybrid and raytrace modes).
+    pub traced: GBuffer,
     pub depth: wgpu::Texture,
     /// One vec4<f32> per pixel: summed colour in rgb, sample count in w.
     pub accum: wgpu::Buffer,
@@ -78,26 +86,48 @@ impl Targets {
             });
         }
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        let storage = wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING;
         gpu.scoped(|| Targets {
             width,
             height,
-            color: texture(gpu, "gbuffer colour", width, height, COLOR_FORMAT, attach),
-            normal_depth: texture(
-                gpu,
-                "gbuffer normal+depth",
-                width,
-                height,
-                NORMAL_DEPTH_FORMAT,
-                attach,
-            ),
-            id: texture(
-                gpu,
-                "gbuffer id",
-                width,
-                height,
-                ID_FORMAT,
-                attach | wgpu::TextureUsages::COPY_SRC,
-            ),
+            raster: GBuffer {
+                color: texture(gpu, "raster colour", width, height, COLOR_FORMAT, attach),
+                normal_depth: texture(
+                    gpu,
+                    "raster normal+depth",
+                    width,
+                    height,
+                    NORMAL_DEPTH_FORMAT,
+                    attach,
+                ),
+                id: texture(
+                    gpu,
+                    "raster id",
+                    width,
+                    height,
+                    ID_FORMAT,
+                    attach | wgpu::TextureUsages::COPY_SRC,
+                ),
+            },
+            traced: GBuffer {
+                color: texture(gpu, "traced colour", width, height, COLOR_FORMAT, storage),
+                normal_depth: texture(
+                    gpu,
+                    "traced normal+depth",
+                    width,
+                    height,
+                    NORMAL_DEPTH_FORMAT,
+                    storage,
+                ),
+                id: texture(
+                    gpu,
+                    "traced id",
+                    width,
+                    height,
+                    ID_FORMAT,
+                    storage | wgpu::TextureUsages::COPY_SRC,
+                ),
+            },
             depth: texture(
                 gpu,
                 "depth",

@@ -1,0 +1,225 @@
+// Exact ray-shape intersection in object space: the WGSL twin of
+// src/accel/intersect.rs (same formulas in the same order).
+// Rays are (o, d) with d NOT normalized: an instance's ray is the world ray
+// mapped by the inverse matrix, so t is the same in both spaces. Each
+// function returns the nearest t in (t_min, t_max) and the outward
+// object-space normal there (planes: +y).
+
+const SHAPE_SPHERE: u32 = 0u;
+const SHAPE_BOX: u32 = 1u;
+const SHAPE_CYLINDER: u32 = 2u;
+const SHAPE_CONE: u32 = 3u;
+const SHAPE_QUAD: u32 = 4u;
+const SHAPE_DISK: u32 = 5u;
+const SHAPE_MESH: u32 = 6u;
+
+struct ObjectHit {
+    hit: bool,
+    t: f32,
+    normal: vec3<f32>,
+    // Outward geometric normal (triangles: by counter-clockwise winding).
+    geometric: vec3<f32>,
+}
+
+fn object_hit(t: f32, n: vec3<f32>) -> ObjectHit {
+    return ObjectHit(true, t, n, n);
+}
+
+fn no_hit() -> ObjectHit {
+    return ObjectHit(false, 0.0, vec3<f32>(0.0), vec3<f32>(0.0));
+}
+
+fn in_range(t: f32, t_min: f32, t_max: f32) -> bool {
+    return t > t_min && t < t_max;
+}
+
+fn intersect_sphere(o: vec3<f32>, d: vec3<f32>, r: f32, t_min: f32, t_max: f32) -> ObjectHit {
+    let a = dot(d, d);
+    let b = dot(o, d);
+    let c = dot(o, o) - r * r;
+    let disc = b * b - a * c;
+    if disc < 0.0 {
+        return no_hit();
+    }
+    let s = sqrt(disc);
+    var t = (-b - s) / a;
+    if !in_range(t, t_min, t_max) {
+        t = (-b + s) / a;
+        if !in_range(t, t_min, t_max) {
+            return no_hit();
+        }
+    }
+    return object_hit(t, (o + d * t) / r);
+}
+
+fn intersect_box(o: vec3<f32>, d: vec3<f32>, h: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+    let inv = 1.0 / d;
+    let t1 = (-h - o) * inv;
+    let t2 = (h - o) * inv;
+    let lo = min(t1, t2);
+    let hi = max(t1, t2);
+    let near = max(max(lo.x, lo.y), lo.z);
+    let far = min(min(hi.x, hi.y), hi.z);
+    if near > far {
+        return no_hit();
+    }
+    var t = near;
+    if !in_range(t, t_min, t_max) {
+        t = far;
+        if !in_range(t, t_min, t_max) {
+            return no_hit();
+        }
+    }
+    let p = (o + d * t) / h;
+    let a = abs(p);
+    var n = vec3<f32>(0.0, 0.0, sign(p.z));
+    if a.x >= a.y && a.x >= a.z {
+        n = vec3<f32>(sign(p.x), 0.0, 0.0);
+    } else if a.y >= a.z {
+        n = vec3<f32>(0.0, sign(p.y), 0.0);
+    }
+    return object_hit(t, n);
+}
+
+fn intersect_cylinder(o: vec3<f32>, d: vec3<f32>, r: f32, height: f32, t_min: f32, t_max: f32) -> ObjectHit {
+    let half = height * 0.5;
+    var best = no_hit();
+    var t_far = t_max;
+    let a = d.x * d.x + d.z * d.z;
+    if a > 0.0 {
+        let b = o.x * d.x + o.z * d.z;
+        let c = o.x * o.x + o.z * o.z - r * r;
+        let disc = b * b - a * c;
+        if disc >= 0.0 {
+            let s = sqrt(disc);
+            let roots = array<f32, 2>((-b - s) / a, (-b + s) / a);
+            for (var i = 0; i < 2; i++) {
+                let t = roots[i];
+                let y = o.y + d.y * t;
+                if t > t_min && t < t_far && abs(y) <= half {
+                    let p = o + d * t;
+                    best = object_hit(t, vec3<f32>(p.x, 0.0, p.z) / r);
+                    t_far = t;
+                    break;
+                }
+            }
+        }
+    }
+    if d.y != 0.0 {
+        let caps = array<f32, 2>(half, -half);
+        for (var i = 0; i < 2; i++) {
+            let cap = caps[i];
+            let t = (cap - o.y) / d.y;
+            let p = o + d * t;
+            if t > t_min && t < t_far && p.x * p.x + p.z * p.z <= r * r {
+                best = object_hit(t, vec3<f32>(0.0, sign(cap), 0.0));
+                t_far = t;
+            }
+        }
+    }
+    return best;
+}
+
+fn intersect_cone(o: vec3<f32>, d: vec3<f32>, r: f32, height: f32, t_min: f32, t_max: f32) -> ObjectHit {
+    let k = r / height;
+    let k2 = k * k;
+    var best = no_hit();
+    var t_far = t_max;
+    let hy = height - o.y;
+    let a = d.x * d.x + d.z * d.z - k2 * d.y * d.y;
+    let b = o.x * d.x + o.z * d.z + k2 * hy * d.y;
+    let c = o.x * o.x + o.z * o.z - k2 * hy * hy;
+    var roots = array<f32, 2>(-1.0, -1.0);
+    var count = 0;
+    if abs(a) > 1e-12 {
+        let disc = b * b - a * c;
+        if disc >= 0.0 {
+            let s = sqrt(disc);
+            let r0 = (-b - s) / a;
+            let r1 = (-b + s) / a;
+            roots = array<f32, 2>(min(r0, r1), max(r0, r1));
+            count = 2;
+        }
+    } else if abs(b) > 1e-12 {
+        roots[0] = -c / (2.0 * b);
+        count = 1;
+    }
+    for (var i = 0; i < count; i++) {
+        let t = roots[i];
+        let p = o + d * t;
+        if t > t_min && t < t_far && p.y >= 0.0 && p.y <= height {
+            best = object_hit(t, normalize(vec3<f32>(p.x, k2 * (height - p.y), p.z)));
+            t_far = t;
+            break;
+        }
+    }
+    if d.y != 0.0 {
+        let t = -o.y / d.y;
+        let p = o + d * t;
+        if t > t_min && t < t_far && p.x * p.x + p.z * p.z <= r * r {
+            best = object_hit(t, vec3<f32>(0.0, -1.0, 0.0));
+        }
+    }
+    return best;
+}
+
+fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_min: f32, t_max: f32) -> ObjectHit {
+    if d.y == 0.0 {
+        return no_hit();
+    }
+    let t = -o.y / d.y;
+    if !in_range(t, t_min, t_max) {
+        return no_hit();
+    }
+    let p = o + d * t;
+    var inside = abs(p.x) <= half.x && abs(p.z) <= half.y;
+    if disk {
+        inside = p.x * p.x + p.z * p.z <= half.x * half.x;
+    }
+    if inside {
+        return object_hit(t, vec3<f32>(0.0, 1.0, 0.0));
+    }
+    return no_hit();
+}
+
+// Moller-Trumbore; the shading normal interpolates the vertex normals by
+// the barycentric coordinates, as the rasterizer does.
+fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, tri: GpuTriangle, t_min: f32, t_max: f32) -> ObjectHit {
+    let p0 = tri.p0.xyz;
+    let e1 = tri.p1.xyz - p0;
+    let e2 = tri.p2.xyz - p0;
+    let pv = cross(d, e2);
+    let det = dot(e1, pv);
+    if det == 0.0 {
+        return no_hit();
+    }
+    let inv = 1.0 / det;
+    let tv = o - p0;
+    let u = dot(tv, pv) * inv;
+    if u < 0.0 || u > 1.0 {
+        return no_hit();
+    }
+    let qv = cross(tv, e1);
+    let v = dot(d, qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return no_hit();
+    }
+    let t = dot(e2, qv) * inv;
+    if !in_range(t, t_min, t_max) {
+        return no_hit();
+    }
+    let n = tri.n0.xyz * (1.0 - u - v) + tri.n1.xyz * u + tri.n2.xyz * v;
+    return ObjectHit(true, t, n, cross(e1, e2));
+}
+
+fn intersect_analytic(kind: u32, p: vec4<f32>, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+    switch kind {
+        case SHAPE_SPHERE: { return intersect_sphere(o, d, p.x, t_min, t_max); }
+        case SHAPE_BOX: { return intersect_box(o, d, p.xyz, t_min, t_max); }
+        case SHAPE_CYLINDER: { return intersect_cylinder(o, d, p.x, p.y, t_min, t_max); }
+        case SHAPE_CONE: { return intersect_cone(o, d, p.x, p.y, t_min, t_max); }
+        case SHAPE_QUAD: { return intersect_plane(o, d, p.xy, false, t_min, t_max); }
+        case SHAPE_DISK: { return intersect_plane(o, d, p.xx, true, t_min, t_max); }
+        default: { return no_hit(); }
+    }
+}

@@ -1,0 +1,161 @@
+// Two-level BVH traversal: the WGSL twin of SceneAccel::closest_hit in
+// src/accel/mod.rs. The including pass declares `nodes`, `triangles`,
+// `shapes`, `instances` and `tlas_items`.
+//
+// Lavapipe silently stops an invocation's loops after ~65,535 iterations in
+// total. Every traversal step spends one unit of `steps_left`, a budget per
+// invocation set well under that; a query that runs out gives up and sets
+// `overflowed`, which the pass reports (a visible colour and a counter), so
+// a truncated image is never silent.
+
+const NO_HIT: u32 = 0xffffffffu;
+const MAX_TRAVERSAL_STEPS: u32 = 12000u;
+const TRAVERSAL_STACK: u32 = 48u;
+
+var<private> steps_left: u32;
+var<private> overflowed: bool;
+
+// A world-space hit: unit outward normals (not yet flipped towards the ray).
+struct TraceHit {
+    t: f32,
+    instance: u32,
+    normal: vec3<f32>,
+    geometric: vec3<f32>,
+}
+
+fn take_step() -> bool {
+    if steps_left == 0u {
+        overflowed = true;
+        return false;
+    }
+    steps_left -= 1u;
+    return true;
+}
+
+// Entry and exit t of a node's box, clipped to (t_min, t_max); a miss has
+// entry > exit.
+fn node_span(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32) -> vec2<f32> {
+    let t1 = (node.bounds_min - o) * inv_d;
+    let t2 = (node.bounds_max - o) * inv_d;
+    let lo = min(t1, t2);
+    let hi = max(t1, t2);
+    let near = max(max(max(lo.x, lo.y), lo.z), t_min);
+    let far = min(min(min(hi.x, hi.y), hi.z), t_max);
+    return vec2<f32>(near, far);
+}
+
+fn child_entry(i: u32, o: vec3<f32>, inv_d: vec3<f32>) -> f32 {
+    let s = node_span(nodes[i], o, inv_d, 0.0, 3.0e38);
+    return select(3.0e38, s.x, s.x <= s.y);
+}
+
+// Pushes both children, the nearer last so it is popped first.
+fn push_ordered(stack: ptr<function, array<u32, TRAVERSAL_STACK>>, sp: ptr<function, u32>, left: u32, o: vec3<f32>, inv_d: vec3<f32>) {
+    if *sp + 2u > TRAVERSAL_STACK {
+        overflowed = true;
+        return;
+    }
+    if child_entry(left, o, inv_d) <= child_entry(left + 1u, o, inv_d) {
+        (*stack)[*sp] = left + 1u;
+        (*stack)[*sp + 1u] = left;
+    } else {
+        (*stack)[*sp] = left;
+        (*stack)[*sp + 1u] = left + 1u;
+    }
+    *sp += 2u;
+}
+
+// The closest triangle of a mesh's bottom-level BVH, in object space.
+fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+    let inv_d = 1.0 / d;
+    var best = no_hit();
+    var t_best = t_max;
+    var stack: array<u32, TRAVERSAL_STACK>;
+    var sp = 1u;
+    stack[0] = root;
+    while sp > 0u {
+        if !take_step() {
+            break;
+        }
+        sp -= 1u;
+        let node = nodes[stack[sp]];
+        let span = node_span(node, o, inv_d, t_min, t_best);
+        if span.x > span.y {
+            continue;
+        }
+        if node.count == 0u {
+            push_ordered(&stack, &sp, node.left_or_first, o, inv_d);
+            continue;
+        }
+        for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
+            let h = intersect_triangle(o, d, triangles[k], t_min, t_best);
+            if h.hit {
+                t_best = h.t;
+                best = h;
+            }
+        }
+    }
+    return best;
+}
+
+fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+    let s = shapes[shape];
+    if s.kind == SHAPE_MESH {
+        return intersect_mesh(s.blas_root, o, d, t_min, t_max);
+    }
+    return intersect_analytic(s.kind, s.params, o, d, t_min, t_max);
+}
+
+// The closest hit of the world ray (o, d) in (t_min, t_max). With
+// `any_hit`, returns the first hit found (shadow rays). With `skip_meshes`,
+// triangle meshes are ignored (hybrid mode rasterizes them).
+fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
+    var best: TraceHit;
+    best.t = t_max;
+    best.instance = NO_HIT;
+    var object_normal = vec3<f32>(0.0);
+    var object_geometric = vec3<f32>(0.0);
+    let inv_d = 1.0 / d;
+    var stack: array<u32, TRAVERSAL_STACK>;
+    var sp = 1u;
+    stack[0] = 0u;
+    while sp > 0u {
+        if !take_step() {
+            break;
+        }
+        sp -= 1u;
+        let node = nodes[stack[sp]];
+        let span = node_span(node, o, inv_d, t_min, best.t);
+        if span.x > span.y {
+            continue;
+        }
+        if node.count == 0u {
+            push_ordered(&stack, &sp, node.left_or_first, o, inv_d);
+            continue;
+        }
+        for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
+            let inst = tlas_items[k];
+            let shape = instances[inst].shape;
+            if skip_meshes && shapes[shape].kind == SHAPE_MESH {
+                continue;
+            }
+            let m = instances[inst].object_from_world;
+            let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, best.t);
+            if h.hit {
+                best.t = h.t;
+                best.instance = inst;
+                object_normal = h.normal;
+                object_geometric = h.geometric;
+                if any_hit {
+                    return best;
+                }
+            }
+        }
+    }
+    if best.instance != NO_HIT {
+        let to_world = instances[best.instance].normal_from_object;
+        best.normal = normalize((to_world * vec4<f32>(object_normal, 0.0)).xyz);
+        best.geometric = normalize((to_world * vec4<f32>(object_geometric, 0.0)).xyz);
+    }
+    return best;
+}

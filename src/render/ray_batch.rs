@@ -1,0 +1,147 @@
+//! Closest hits of arbitrary rays on the GPU, by the trace pass's own
+//! traversal: what the tests compare with the CPU reference, and what the
+//! ray-throughput benchmark times.
+
+use wgpu::util::DeviceExt;
+
+use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP};
+use crate::gpu::{readback, shader, Gpu, GpuError};
+use crate::render::raster::read_only_storage_entry;
+use crate::render::scene_buffers::SceneBuffers;
+use crate::render::trace::read_write_storage_entry;
+
+pub struct RayBatch {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl RayBatch {
+    pub fn new(gpu: &Gpu) -> Result<RayBatch, GpuError> {
+        let module = shader::create_module(gpu, "ray_batch.wgsl")?;
+        let c = wgpu::ShaderStages::COMPUTE;
+        gpu.scoped(|| {
+            let layout = gpu
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("ray batch layout"),
+                    entries: &[
+                        read_only_storage_entry(0, c),
+                        read_only_storage_entry(1, c),
+                        read_only_storage_entry(2, c),
+                        read_only_storage_entry(3, c),
+                        read_only_storage_entry(4, c),
+                        read_only_storage_entry(5, c),
+                        read_write_storage_entry(6),
+                    ],
+                });
+            let pipeline_layout =
+                gpu.device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("ray batch pipeline layout"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+            let pipeline = gpu
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("ray batch pipeline"),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some("main"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            RayBatch { pipeline, layout }
+        })
+    }
+
+    /// Traces `rays` against `scene`; returns one hit per ray (and the GPU
+    /// seconds of the dispatch when `timed`, from wall time around a wait).
+    pub fn trace(
+        &self,
+        gpu: &Gpu,
+        scene: &SceneBuffers,
+        rays: &[GpuRay],
+    ) -> Result<Vec<GpuHit>, GpuError> {
+        let (hits, _) = self.trace_timed(gpu, scene, rays)?;
+        Ok(hits)
+    }
+
+    /// As [`RayBatch::trace`], also returning the seconds from submit to
+    /// completion of the dispatch (excluding upload and readback).
+    pub fn trace_timed(
+        &self,
+        gpu: &Gpu,
+        scene: &SceneBuffers,
+        rays: &[GpuRay],
+    ) -> Result<(Vec<GpuHit>, f64), GpuError> {
+        if rays.is_empty() {
+            return Ok((Vec::new(), 0.0));
+        }
+        let ray_buffer = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("ray batch rays"),
+                contents: bytemuck::cast_slice(rays),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        let hit_bytes = (rays.len() * std::mem::size_of::<GpuHit>()) as u64;
+        let hit_buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ray batch hits"),
+            size: hit_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ray batch readback"),
+            size: hit_bytes,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let buffers = [
+            &scene.instances,
+            &scene.shapes,
+            &scene.nodes,
+            &scene.triangles,
+            &scene.tlas_items,
+            &ray_buffer,
+            &hit_buffer,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ray batch bind group"),
+            layout: &self.layout,
+            entries: &entries,
+        });
+        gpu.wait_idle()?;
+        let start = std::time::Instant::now();
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("ray batch pass"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            // At most 65,535 workgroups: up to 4 million rays per batch.
+            let groups = (rays.len() as u32).div_ceil(RAY_BATCH_WORKGROUP);
+            pass.dispatch_workgroups(groups, 1, 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        gpu.wait_idle()?;
+        let seconds = start.elapsed().as_secs_f64();
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&hit_buffer, 0, &staging, 0, hit_bytes);
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = readback::read_buffer(gpu, &staging)?;
+        gpu.take_errors()?;
+        Ok((bytemuck::cast_slice(&bytes).to_vec(), seconds))
+    }
+}
