@@ -65,3 +65,19 @@ pub fn primary_ray(camera: &Camera, size: (u32, u32), pixel: Vec2) -> (Vec3, Vec
     let dir = forward + right * ndc.x * tan_half * (w / h) + up * ndc.y * tan_half;
     (camera.eye, dir.normalize())
 }
+
+impl SampleCamera {
+    /// The world ray through the centre of pixel (x, y) for this sample:
+    /// the CPU twin of the trace pass's primary ray (the same unprojection
+    /// through the inverse of `clip_from_world`). Origin and unit direction.
+    pub fn pixel_ray(&self, size: (u32, u32), x: u32, y: u32) -> (Vec3, Vec3) {
+        let world_from_clip = self.clip_from_world.as_dmat4().inverse();
+        let ndc = glam::DVec2::new(
+            (f64::from(x) + 0.5) / f64::from(size.0) * 2.0 - 1.0,
+            1.0 - (f64::from(y) + 0.5) / f64::from(size.1) * 2.0,
+        );
+        let near = world_from_clip.project_point3(ndc.extend(0.0));
+        let far = world_from_clip.project_point3(ndc.extend(1.0));
+        (near.as_vec3(), (far - near).normalize().as_vec3())
+    }
+}

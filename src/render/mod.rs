@@ -149,13 +149,20 @@ impl Renderer {
         Ok(())
     }
 
-    /// The uniforms of sample `k`.
-    fn frame_uniforms(&self, k: u32) -> FrameUniforms {
+    /// The camera of sample `k`: view, jittered projection.
+    pub fn sample_camera(&self, k: u32) -> camera::SampleCamera {
         let s = &self.settings;
         let cam = &self.scene.camera;
         let offset = pixel_offset(s.pattern, k, s.spp, s.seed);
         let depth = camera::depth_range(cam, self.scene.bounds());
-        let sc = camera::sample_camera(cam, (s.width, s.height), offset, depth);
+        camera::sample_camera(cam, (s.width, s.height), offset, depth)
+    }
+
+    /// The uniforms of sample `k`.
+    fn frame_uniforms(&self, k: u32) -> FrameUniforms {
+        let s = &self.settings;
+        let offset = pixel_offset(s.pattern, k, s.spp, s.seed);
+        let sc = self.sample_camera(k);
         let (lo, hi) = self.scene.bounds();
         let scene_radius = ((hi - lo).length() * 0.5).max(1e-3);
         // Inverted in f64: the projection's near/far ratio is large.

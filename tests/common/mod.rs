@@ -71,3 +71,53 @@ pub fn rgb_at(img: &[u8], width: u32, x: u32, y: u32) -> [u8; 3] {
     let i = ((y * width + x) * 4) as usize;
     [img[i], img[i + 1], img[i + 2]]
 }
+
+/// A renderer that has accumulated `settings.spp` samples of `scene`.
+pub fn rendered(gpu: &Gpu, scene: Scene, settings: RenderSettings) -> Renderer {
+    let mut r = Renderer::new(gpu, scene, settings).unwrap_or_else(|e| panic!("{e}"));
+    r.render_to_convergence(gpu, |_, _| {}).unwrap();
+    r
+}
+
+/// Pixels where `got` and `want` disagree and no 8-neighbour of the pixel
+/// has the opposite `want` value: disagreements away from a boundary.
+pub fn mismatches_off_boundary(got: &[bool], want: &[bool], w: u32, h: u32) -> Vec<(u32, u32)> {
+    let mut out = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            if got[i] == want[i] {
+                continue;
+            }
+            let near_boundary = (-1i32..=1).any(|dy| {
+                (-1i32..=1).any(|dx| {
+                    let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                    nx >= 0
+                        && ny >= 0
+                        && nx < w as i32
+                        && ny < h as i32
+                        && want[(ny as u32 * w + nx as u32) as usize] != want[i]
+                })
+            });
+            if !near_boundary {
+                out.push((x, y));
+            }
+        }
+    }
+    out
+}
+
+/// Pixels at least `margin` pixels (Chebyshev) from any pixel of the other class.
+pub fn interior(mask: &[bool], w: u32, h: u32, x: u32, y: u32, margin: i32) -> bool {
+    let v = mask[(y * w + x) as usize];
+    (-margin..=margin).all(|dy| {
+        (-margin..=margin).all(|dx| {
+            let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+            nx >= 0
+                && ny >= 0
+                && nx < w as i32
+                && ny < h as i32
+                && mask[(ny as u32 * w + nx as u32) as usize] == v
+        })
+    })
+}

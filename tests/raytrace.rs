@@ -1,0 +1,549 @@
+//! The compute ray tracer on lavapipe against closed forms and against the
+//! CPU reference traversal.
+
+mod common;
+
+use celray::gpu::twins::GpuRay;
+use celray::render::ray_batch::RayBatch;
+use celray::render::{RenderMode, RenderSettings};
+use celray::sampling::uniform;
+use celray::scene::Scene;
+use common::*;
+use glam::{DMat4, DVec3, Mat4, Vec3};
+
+fn settings(scene: &Scene, mode: RenderMode) -> RenderSettings {
+    RenderSettings {
+        mode,
+        ..pixel_centre_settings(scene)
+    }
+}
+
+/// Where the ray (o, d) meets the unit sphere mapped by `m` (an ellipsoid),
+/// solved in f64 independently of the renderer: |L o + t L d|^2 = 1 with
+/// L = m^-1. Returns t.
+fn ray_ellipsoid(m: Mat4, o: Vec3, d: Vec3) -> Option<f64> {
+    let l = m.as_dmat4().inverse();
+    let (o, d) = (
+        l.transform_point3(o.as_dvec3()),
+        l.transform_vector3(d.as_dvec3()),
+    );
+    let (a, b, c) = (d.dot(d), o.dot(d), o.dot(o) - 1.0);
+    let disc = b * b - a * c;
+    (disc >= 0.0)
+        .then(|| (-b - disc.sqrt()) / a)
+        .filter(|t| *t > 0.0)
+}
+
+/// The unit outward normal of the ellipsoid {p : |L p|^2 = 1} at p: the
+/// gradient of the implicit function, 2 A^T (L p), with A the linear part of L.
+fn ellipsoid_normal(m: Mat4, p: DVec3) -> DVec3 {
+    let l: DMat4 = m.as_dmat4().inverse();
+    let q = l.transform_point3(p);
+    let a_t = glam::DMat3::from_mat4(l).transpose();
+    (a_t * q).normalize()
+}
+
+fn ellipsoid_scene(transform: &str) -> String {
+    format!(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 6.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 35.0, width: 200, height: 200),
+            ambient: (0.05, 0.05, 0.05), background: (0.0, 0.0, 0.0),
+            lights: [Directional(direction: (-1.0, -1.0, -1.0), color: (1.0, 1.0, 1.0), intensity: 0.9)],
+            materials: {{ "m": (base_color: (0.3, 0.6, 0.9), specular_color: (0.4, 0.4, 0.4), shininess: 16.0, model: BlinnPhong, outline_width_px: 0.0) }},
+            shapes: {{ "ball": Sphere(radius: 1.0) }},
+            instances: [(shape: "ball", material: "m", transform: {transform})],
+        )"#
+    )
+}
+
+/// An ellipsoid made by scaling and rotating a unit sphere instance, and a
+/// sheared one: the silhouette matches the analytic projection within 1 px
+/// and the shading matches Blinn-Phong with the analytic ellipsoid normal
+/// within 2/255 at every interior pixel sampled.
+#[test]
+fn instanced_ellipsoids_match_the_analytic_silhouette_and_normal() {
+    let gpu = gpu();
+    let transforms = [
+        "(translate: (0.2, -0.1, 0.0), rotate_deg: (20.0, 0.0, 30.0), scale: (1.6, 0.8, 1.0))",
+        "Matrix(((1.0, 0.6, 0.0, 0.1), (0.0, 1.0, 0.0, 0.0), (0.3, 0.0, 0.8, 0.0), (0.0, 0.0, 0.0, 1.0)))",
+    ];
+    for transform in transforms {
+        for mode in [RenderMode::Raytrace, RenderMode::Hybrid] {
+            let scene = scene(&ellipsoid_scene(transform));
+            let m = scene.instances[0].world_from_object;
+            let (w, h) = (scene.camera.width, scene.camera.height);
+            let r = rendered(&gpu, scene.clone(), settings(&scene, mode));
+            let img = r.read_srgb8(&gpu).unwrap();
+            let ids = r.read_ids(&gpu).unwrap();
+            let cam = r.sample_camera(0);
+
+            let mut want = Vec::new();
+            let mut hit_t = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    let (o, d) = cam.pixel_ray((w, h), x, y);
+                    let t = ray_ellipsoid(m, o, d);
+                    want.push(t.is_some());
+                    hit_t.push(t.map(|t| (o.as_dvec3() + d.as_dvec3() * t, d.as_dvec3())));
+                }
+            }
+            let got: Vec<bool> = ids.iter().map(|&id| id != 0).collect();
+            let bad = mismatches_off_boundary(&got, &want, w, h);
+            assert!(
+                bad.is_empty(),
+                "{transform} {mode:?}: silhouette off by more than 1 px at {:?}",
+                &bad[..bad.len().min(5)]
+            );
+            assert!(
+                want.iter().filter(|&&v| v).count() > 2000,
+                "the ellipsoid covers a good part of the image"
+            );
+
+            let kd = DVec3::new(0.3, 0.6, 0.9);
+            let ks = DVec3::splat(0.4);
+            let l = -DVec3::new(-1.0, -1.0, -1.0).normalize();
+            let mut compared = 0;
+            for y in (0..h).step_by(7) {
+                for x in (0..w).step_by(7) {
+                    if !want[(y * w + x) as usize] || !interior(&want, w, h, x, y, 2) {
+                        continue;
+                    }
+                    let (p, d) = hit_t[(y * w + x) as usize].unwrap();
+                    let n = ellipsoid_normal(m, p);
+                    let v = -d.normalize();
+                    let n_dot_l = n.dot(l);
+                    let spec = if n_dot_l > 0.0 {
+                        n.dot((l + v).normalize()).max(0.0).powf(16.0)
+                    } else {
+                        0.0
+                    };
+                    let c = kd * 0.05 + (kd * n_dot_l.max(0.0) + ks * spec) * 0.9;
+                    let expected = [srgb8(c.x as f32), srgb8(c.y as f32), srgb8(c.z as f32)];
+                    let got = rgb_at(&img, w, x, y);
+                    for ch in 0..3 {
+                        let diff = (i32::from(got[ch]) - i32::from(expected[ch])).abs();
+                        assert!(
+                            diff <= 2,
+                            "{transform} {mode:?} ({x},{y}): got {got:?}, analytic {expected:?}"
+                        );
+                    }
+                    compared += 1;
+                }
+            }
+            assert!(compared >= 50, "only {compared} pixels compared");
+        }
+    }
+}
+
+/// 1,000 instances of every kind of shape (the spot mesh included) under
+/// random rotations and non-uniform scales, and 10,000 random rays: the GPU
+/// finds the same instance as the CPU reference and t within 1e-4 relative.
+/// A ray may disagree only where it grazes an edge: the CPU reference itself
+/// changes its answer when the ray moves by 1e-4 of the scene size.
+#[test]
+fn gpu_traversal_matches_cpu_reference_on_random_rays() {
+    let gpu = gpu();
+    let shapes = ["ball", "crate", "can", "cone", "quad", "disk", "cow"];
+    let mut instances = String::new();
+    for i in 0..1000u32 {
+        let r = |k: u32| uniform(i, 17, k);
+        let shape = shapes[(r(0) * shapes.len() as f32) as usize % shapes.len()];
+        instances += &format!(
+            "(shape: \"{shape}\", material: \"m\", transform: (translate: ({:.4}, {:.4}, {:.4}), rotate_deg: ({:.2}, {:.2}, {:.2}), scale: ({:.3}, {:.3}, {:.3}))),\n",
+            r(1) * 20.0 - 10.0, r(2) * 20.0 - 10.0, r(3) * 20.0 - 10.0,
+            r(4) * 360.0, r(5) * 360.0, r(6) * 360.0,
+            0.3 + r(7) * 1.2, 0.3 + r(8) * 1.2, 0.3 + r(9) * 1.2,
+        );
+    }
+    let ron = format!(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 30.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 64, height: 64),
+            lights: [Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: {{ "m": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) }},
+            shapes: {{ "ball": Sphere(radius: 0.7), "crate": Box(half_extents: (0.5, 0.3, 0.6)), "can": Cylinder(radius: 0.4, height: 1.2),
+                      "cone": Cone(radius: 0.5, height: 1.0), "quad": Plane(Quad(half_size: (0.8, 0.5))), "disk": Plane(Disk(radius: 0.6)),
+                      "cow": Mesh(path: "assets/models/spot/spot_triangulated.obj") }},
+            instances: [{instances}],
+        )"#
+    );
+    let scene = Scene::from_ron_str(
+        &ron,
+        "random.ron",
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+    )
+    .unwrap();
+    let renderer = celray::render::Renderer::new(
+        &gpu,
+        scene,
+        RenderSettings {
+            width: 8,
+            height: 8,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let buffers = renderer.scene_buffers();
+    let accel = &buffers.accel;
+
+    let rays: Vec<GpuRay> = (0..10_000u32)
+        .map(|i| {
+            let o = Vec3::new(uniform(i, 1, 0), uniform(i, 1, 1), uniform(i, 1, 2)) * 30.0
+                - Vec3::splat(15.0);
+            // Aim near a random point of the instance cloud so most rays hit.
+            let aim = Vec3::new(uniform(i, 2, 0), uniform(i, 2, 1), uniform(i, 2, 2)) * 20.0
+                - Vec3::splat(10.0);
+            let d = (aim - o).normalize();
+            GpuRay {
+                origin: o.extend(0.0).to_array(),
+                dir: d.extend(1e30).to_array(),
+            }
+        })
+        .collect();
+    let hits = RayBatch::new(&gpu)
+        .unwrap()
+        .trace(&gpu, buffers, &rays)
+        .unwrap();
+
+    let mut hit_count = 0;
+    let mut grazing = 0;
+    for (i, (ray, gpu_hit)) in rays.iter().zip(&hits).enumerate() {
+        let (o, d) = (Vec3::from_slice(&ray.origin), Vec3::from_slice(&ray.dir));
+        let cpu = accel.closest_hit(o, d, 0.0, 1e30);
+        assert!(
+            !cpu.overflow && gpu_hit.overflow == 0,
+            "ray {i}: traversal overflow"
+        );
+        let same = match cpu.hit {
+            None => gpu_hit.instance == u32::MAX,
+            Some(h) => {
+                h.instance == gpu_hit.instance && ((h.t - gpu_hit.t).abs() <= 1e-4 * h.t.max(1e-3))
+            }
+        };
+        if cpu.hit.is_some() {
+            hit_count += 1;
+        }
+        if !same {
+            // Grazing test: does the CPU answer itself change when the ray
+            // origin moves by 1e-4 of the scene size (30 units)?
+            let wobble = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z].map(|e| {
+                accel
+                    .closest_hit(o + e * 3e-3, d, 0.0, 1e30)
+                    .hit
+                    .map(|h| h.instance)
+            });
+            let ambiguous = wobble.iter().any(|w| *w != cpu.hit.map(|h| h.instance));
+            assert!(
+                ambiguous,
+                "ray {i}: GPU {gpu_hit:?} but CPU {cpu:?}, and the ray is not grazing"
+            );
+            grazing += 1;
+        }
+    }
+    assert!(
+        hit_count > 3000,
+        "only {hit_count} of 10,000 rays hit: the test would prove little"
+    );
+    assert!(
+        grazing <= 10,
+        "{grazing} grazing disagreements, more than 0.1% of rays"
+    );
+}
+
+/// Hybrid (meshes rasterized, the rest traced) against raytrace (everything
+/// traced) on every shipped scene. Both sample the same pixel centres and
+/// shade with the same functions, so pixels agree within 2/255 per channel
+/// except where float rounding flips a mesh silhouette or a shadow edge
+/// pixel between two valid answers: at most 0.5% of the pixels.
+#[test]
+fn hybrid_matches_raytrace_on_every_scene() {
+    let gpu = gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("ron") {
+            continue;
+        }
+        let scene = Scene::load(&path).unwrap();
+        let size = RenderSettings {
+            width: 240,
+            height: 135,
+            ..settings(&scene, RenderMode::Hybrid)
+        };
+        let hybrid = rendered(&gpu, scene.clone(), size.clone())
+            .read_srgb8(&gpu)
+            .unwrap();
+        let raytrace = rendered(
+            &gpu,
+            scene,
+            RenderSettings {
+                mode: RenderMode::Raytrace,
+                ..size
+            },
+        )
+        .read_srgb8(&gpu)
+        .unwrap();
+        let differing = hybrid
+            .chunks(4)
+            .zip(raytrace.chunks(4))
+            .filter(|(a, b)| (0..3).any(|c| (i32::from(a[c]) - i32::from(b[c])).abs() > 2))
+            .count();
+        let fraction = differing as f64 / (240.0 * 135.0);
+        assert!(
+            fraction <= 0.005,
+            "{}: {:.2}% of pixels differ by more than 2/255",
+            path.display(),
+            fraction * 100.0
+        );
+    }
+}
+
+/// A sphere of radius 0.5 above a floor, the sun straight overhead: the
+/// shadow on the floor is the disk x^2 + z^2 < 0.5^2 under the sphere.
+#[test]
+fn shadow_lands_under_the_sphere() {
+    let gpu = gpu();
+    let ron = r#"(version: 1,
+        camera: (eye: (0.0, 5.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 160, height: 120),
+        ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+        lights: [Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.8)],
+        materials: { "floor": (base_color: (0.5, 0.5, 0.5), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong),
+                     "ball": (base_color: (0.9, 0.1, 0.1), model: BlinnPhong) },
+        shapes: { "floor": Plane(Quad(half_size: (5.0, 5.0))), "ball": Sphere(radius: 0.5) },
+        instances: [(shape: "floor", material: "floor"), (shape: "ball", material: "ball", transform: (translate: (0.0, 1.5, 0.0)))],
+    )"#;
+    let scene = scene(ron);
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    for mode in [RenderMode::Hybrid, RenderMode::Raytrace] {
+        let r = rendered(&gpu, scene.clone(), settings(&scene, mode));
+        let img = r.read_srgb8(&gpu).unwrap();
+        let cam = r.sample_camera(0);
+        let lit = srgb8(0.5 * 0.2 + 0.5 * 0.8);
+        let shadowed = srgb8(0.5 * 0.2);
+        let (mut floor_px, mut want_shadow, mut got_shadow) = (Vec::new(), Vec::new(), Vec::new());
+        for y in 0..h {
+            for x in 0..w {
+                let (o, d) = cam.pixel_ray((w, h), x, y);
+                let t = -o.y / d.y;
+                let p = o + d * t;
+                // Floor pixels not covered by the sphere itself.
+                let sees_ball = celray::accel::intersect::sphere(
+                    o - Vec3::new(0.0, 1.5, 0.0),
+                    d,
+                    0.5,
+                    0.0,
+                    f32::MAX,
+                )
+                .is_some();
+                let on_floor = t > 0.0 && p.x.abs() < 5.0 && p.z.abs() < 5.0 && !sees_ball;
+                floor_px.push(on_floor);
+                want_shadow.push(on_floor && p.x * p.x + p.z * p.z < 0.25);
+                let g = rgb_at(&img, w, x, y)[0];
+                if on_floor {
+                    assert!(
+                        g.abs_diff(lit) <= 2 || g.abs_diff(shadowed) <= 2,
+                        "{mode:?} ({x},{y}): {g} is neither lit {lit} nor shadowed {shadowed}"
+                    );
+                }
+                got_shadow.push(on_floor && g.abs_diff(shadowed) <= 2);
+            }
+        }
+        let bad = mismatches_off_boundary(&got_shadow, &want_shadow, w, h);
+        assert!(
+            bad.is_empty(),
+            "{mode:?}: shadow differs from the analytic disk at {:?}",
+            &bad[..bad.len().min(5)]
+        );
+        assert!(
+            want_shadow.iter().filter(|&&s| s).count() > 100,
+            "the shadow should be visible"
+        );
+    }
+}
+
+/// A red sphere over a mirror floor: a floor pixel shows red exactly where
+/// its ray, reflected about y = 0, hits the sphere (else the blue background).
+#[test]
+fn mirror_reflection_lands_where_the_geometry_says() {
+    let gpu = gpu();
+    let ron = r#"(version: 1,
+        camera: (eye: (0.0, 1.2, 6.0), target: (0.0, 0.3, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 35.0, width: 160, height: 120),
+        ambient: (1.0, 1.0, 1.0), background: (0.0, 0.0, 1.0),
+        lights: [],
+        materials: { "mirror": (base_color: (0.0, 0.0, 0.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong, reflectivity: 1.0),
+                     "red": (base_color: (1.0, 0.0, 0.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong, outline_width_px: 0.0) },
+        shapes: { "floor": Plane(Quad(half_size: (20.0, 20.0))), "ball": Sphere(radius: 0.6) },
+        instances: [(shape: "floor", material: "mirror"), (shape: "ball", material: "red", transform: (translate: (0.4, 0.9, 0.0)))],
+    )"#;
+    let scene = scene(ron);
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let centre = Vec3::new(0.4, 0.9, 0.0);
+    for mode in [RenderMode::Hybrid, RenderMode::Raytrace] {
+        let r = rendered(&gpu, scene.clone(), settings(&scene, mode));
+        let img = r.read_srgb8(&gpu).unwrap();
+        let cam = r.sample_camera(0);
+        let (mut want, mut got, mut direct_mask) = (Vec::new(), Vec::new(), Vec::new());
+        let mut reflected = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let (o, d) = cam.pixel_ray((w, h), x, y);
+                let direct =
+                    celray::accel::intersect::sphere(o - centre, d, 0.6, 0.0, f32::MAX).is_some();
+                let t = -o.y / d.y;
+                let mirror_hit = !direct && t > 0.0;
+                direct_mask.push(direct);
+                let in_reflection = mirror_hit && {
+                    let p = o + d * t;
+                    let r = Vec3::new(d.x, -d.y, d.z);
+                    celray::accel::intersect::sphere(p - centre, r, 0.6, 0.0, f32::MAX).is_some()
+                };
+                reflected += usize::from(in_reflection);
+                let rgb = rgb_at(&img, w, x, y);
+                want.push(in_reflection);
+                got.push(mirror_hit && rgb[0] > 200 && rgb[2] < 50);
+            }
+        }
+        // Pixels on the sphere's own silhouette are excluded too.
+        let mut bad = mismatches_off_boundary(&got, &want, w, h);
+        bad.retain(|&(x, y)| interior(&direct_mask, w, h, x, y, 1));
+        assert!(
+            bad.is_empty(),
+            "{mode:?}: reflection differs from the mirrored geometry at {:?}",
+            &bad[..bad.len().min(5)]
+        );
+        assert!(
+            reflected > 200,
+            "the reflection should be visible ({reflected} px)"
+        );
+    }
+}
+
+#[test]
+fn sizes_over_gpu_limits_fail_with_the_limit_named() {
+    let gpu = gpu();
+    let scene = Scene::builtin_default();
+    let huge = RenderSettings {
+        width: 16384,
+        height: 16384,
+        ..RenderSettings::default()
+    };
+    let err = celray::render::Renderer::new(&gpu, scene.clone(), huge)
+        .err()
+        .expect("16384 x 16384 must not fit")
+        .to_string();
+    assert!(
+        err.contains("accumulation buffer") && err.contains("limit"),
+        "{err}"
+    );
+
+    // Enough instances that their matrices overflow the storage-buffer
+    // binding limit (128 MiB on lavapipe; computed from the device).
+    let per_instance = std::mem::size_of::<celray::gpu::twins::GpuInstance>() as u64;
+    let count = gpu.device.limits().max_storage_buffer_binding_size as u64 / per_instance + 1;
+    let mut big = scene;
+    let one = big.instances[0].clone();
+    big.instances = vec![one; count as usize];
+    let err = celray::render::Renderer::new(
+        &gpu,
+        big,
+        RenderSettings {
+            width: 8,
+            height: 8,
+            ..Default::default()
+        },
+    )
+    .err()
+    .expect("too many instances must be refused")
+    .to_string();
+    assert!(
+        err.contains("instance buffer") && err.contains("limit"),
+        "{err}"
+    );
+}
+
+/// A deep scene: FlightHelmet (94,722 triangles) instanced 10,000 times on a
+/// 100 x 100 grid between two facing mirrors over a mirror floor, traced with
+/// up to 8 bounces. No pixel may exhaust its traversal budget (lavapipe
+/// would otherwise cut the loops silently), and every pixel's primary hit is
+/// the CPU reference's (the only exceptions: rays that graze an edge).
+#[test]
+fn deep_scene_has_no_truncated_pixels() {
+    let gpu = gpu();
+    let ron = r#"(version: 1,
+        camera: (eye: (-0.5, 2.0, -0.5), target: (10.0, 0.0, 10.0), up: (0.0, 1.0, 0.0), fov_y_deg: 50.0, width: 64, height: 48),
+        lights: [Directional(direction: (-0.3, -1.0, -0.4), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: {
+            "helmet": (base_color: (0.7, 0.6, 0.5), model: Toon(bands: 3), reflectivity: 0.3),
+            "mirror": (base_color: (0.1, 0.1, 0.1), model: BlinnPhong, reflectivity: 0.9),
+        },
+        shapes: { "helmet": Mesh(path: "assets/models/FlightHelmet/FlightHelmet.gltf"), "wall": Plane(Quad(half_size: (60.0, 60.0))) },
+        instances: [
+            (shape: "wall", material: "mirror"),
+            (shape: "wall", material: "mirror", transform: (translate: (0.0, 0.0, -1.0), rotate_deg: (90.0, 0.0, 0.0))),
+            (shape: "wall", material: "mirror", transform: (translate: (0.0, 0.0, 40.0), rotate_deg: (-90.0, 0.0, 0.0))),
+        ],
+    )"#;
+    let mut scene = Scene::from_ron_str(
+        ron,
+        "deep.ron",
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+    )
+    .unwrap();
+    let helmet = celray::scene::Instance {
+        shape: 0,
+        material: 0,
+        world_from_object: Mat4::IDENTITY,
+    };
+    for i in 0..10_000 {
+        let (gx, gz) = ((i % 100) as f32, (i / 100) as f32);
+        scene.instances.push(celray::scene::Instance {
+            world_from_object: Mat4::from_translation(Vec3::new(gx * 0.4, 0.0, gz * 0.4))
+                * Mat4::from_scale(Vec3::splat(0.6)),
+            ..helmet.clone()
+        });
+    }
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let settings = RenderSettings {
+        max_bounces: 8,
+        ..settings(&scene, RenderMode::Raytrace)
+    };
+    let r = rendered(&gpu, scene, settings);
+    assert_eq!(
+        r.overflow_pixels(&gpu).unwrap(),
+        0,
+        "pixels ran out of traversal steps"
+    );
+    let ids = r.read_ids(&gpu).unwrap();
+    let cam = r.sample_camera(0);
+    let accel = &r.scene_buffers().accel;
+    let mut grazing = 0;
+    let mut helmets = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let (o, d) = cam.pixel_ray((w, h), x, y);
+            let cpu = accel.closest_hit(o, d, 0.0, 3e38);
+            assert!(!cpu.overflow);
+            let want = cpu.hit.map_or(0, |h| h.instance + 1);
+            let got = ids[(y * w + x) as usize];
+            helmets += usize::from(
+                cpu.hit
+                    .is_some_and(|h| accel.instances[h.instance as usize].2 == 0),
+            );
+            if got != want {
+                let moved = accel
+                    .closest_hit(o + Vec3::splat(1e-3), d, 0.0, 3e38)
+                    .hit
+                    .map_or(0, |h| h.instance + 1);
+                assert!(
+                    moved != want,
+                    "pixel ({x},{y}): GPU instance {got}, CPU {want}, not a grazing ray"
+                );
+                grazing += 1;
+            }
+        }
+    }
+    assert!(
+        helmets > 500,
+        "the helmets should fill much of the view ({helmets} px)"
+    );
+    assert!(grazing <= 3, "{grazing} grazing pixels");
+}
