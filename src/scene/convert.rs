@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 use glam::Mat4;
 
 use super::file::{
-    ron_options, ApertureFile, CameraFile, LightFile, MaterialFile, ModelFile, PlaneFile,
+    ron_options, ApertureFile, CameraFile, CsgFile, LightFile, MaterialFile, ModelFile, PlaneFile,
     SceneFile, ShapeFile, TransformFile, VersionProbe, SCENE_FORMAT_VERSION,
 };
 use super::{
-    ApertureShape, Camera, Instance, Light, Material, Mesh, PlaneKind, Rim, Scene, SceneError,
-    ShadingModel, Shape, Toon, MAX_TOON_BANDS,
+    ApertureShape, Camera, Csg, CsgLeaf, CsgNode, Instance, Light, Material, Mesh, PlaneKind, Rim,
+    Scene, SceneError, ShadingModel, Shape, Toon, MAX_TOON_BANDS,
 };
 
 /// Outline width of toon materials that do not give one.
@@ -126,7 +126,7 @@ fn convert(file: SceneFile, file_name: &str, meshes: &mut MeshLoader) -> Result<
     let mut shapes = Vec::new();
     let mut shape_names = Vec::new();
     for (name, shape) in file.shapes.0 {
-        shapes.push(convert_shape(shape, &name, meshes)?);
+        shapes.push(convert_shape(shape, &name, meshes, &material_names)?);
         shape_names.push(name);
     }
 
@@ -297,7 +297,13 @@ fn convert_shape(
     shape: ShapeFile,
     name: &str,
     meshes: &mut MeshLoader,
+    material_names: &[String],
 ) -> Result<Shape, SceneError> {
+    let mut csg = |root: CsgFile| -> Result<Shape, SceneError> {
+        Ok(Shape::Csg(Csg {
+            root: Box::new(convert_csg(root, name, meshes, material_names)?),
+        }))
+    };
     Ok(match shape {
         ShapeFile::Sphere { radius } => Shape::Sphere { radius },
         ShapeFile::Box { half_extents } => Shape::Box { half_extents },
@@ -308,7 +314,89 @@ fn convert_shape(
         }
         ShapeFile::Plane(PlaneFile::Disk { radius }) => Shape::Plane(PlaneKind::Disk { radius }),
         ShapeFile::Mesh { path } => Shape::Mesh(meshes.load(&path, name)?),
+        ShapeFile::Union(children) => csg(CsgFile::Union(children))?,
+        ShapeFile::Intersection(children) => csg(CsgFile::Intersection(children))?,
+        ShapeFile::Difference(a, b) => csg(CsgFile::Difference(a, b))?,
     })
+}
+
+/// A CSG tree from its file form: resolves leaf material names and loads
+/// mesh leaves (closedness and bounds are checked by validation).
+fn convert_csg(
+    node: CsgFile,
+    shape_name: &str,
+    meshes: &mut MeshLoader,
+    material_names: &[String],
+) -> Result<CsgNode, SceneError> {
+    let children = |list: Vec<CsgFile>, meshes: &mut MeshLoader| {
+        list.into_iter()
+            .map(|c| convert_csg(c, shape_name, meshes, material_names))
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let (shape, transform, material) = match node {
+        CsgFile::Union(list) => return Ok(CsgNode::Union(children(list, meshes)?)),
+        CsgFile::Intersection(list) => return Ok(CsgNode::Intersection(children(list, meshes)?)),
+        CsgFile::Difference(a, b) => {
+            return Ok(CsgNode::Difference(
+                Box::new(convert_csg(*a, shape_name, meshes, material_names)?),
+                Box::new(convert_csg(*b, shape_name, meshes, material_names)?),
+            ))
+        }
+        CsgFile::Sphere {
+            radius,
+            transform,
+            material,
+        } => (Shape::Sphere { radius }, transform, material),
+        CsgFile::Box {
+            half_extents,
+            transform,
+            material,
+        } => (Shape::Box { half_extents }, transform, material),
+        CsgFile::Cylinder {
+            radius,
+            height,
+            transform,
+            material,
+        } => (Shape::Cylinder { radius, height }, transform, material),
+        CsgFile::Cone {
+            radius,
+            height,
+            transform,
+            material,
+        } => (Shape::Cone { radius, height }, transform, material),
+        CsgFile::Mesh {
+            path,
+            transform,
+            material,
+        } => (
+            Shape::Mesh(meshes.load(&path, shape_name)?),
+            transform,
+            material,
+        ),
+        CsgFile::Plane(_) => {
+            return Err(SceneError::invalid(
+                format!("shape \"{shape_name}\""),
+                "a plane has no inside and cannot be a CSG leaf; use a thin Box",
+            ))
+        }
+    };
+    let material = match material {
+        None => None,
+        Some(m) => Some(material_names.iter().position(|n| *n == m).ok_or_else(|| {
+            SceneError::invalid(
+                format!("shape \"{shape_name}\""),
+                format!(
+                    "CSG leaf material \"{m}\" is not defined; available materials: {}",
+                    list_names(material_names)
+                ),
+            )
+        })?),
+    };
+    Ok(CsgNode::Leaf(CsgLeaf {
+        shape,
+        csg_from_leaf: transform_matrix(&transform),
+        material,
+    }))
 }
 
 /// `T * Rz * Ry * Rx * S` for the TRS form; the transpose of the rows for

@@ -200,6 +200,61 @@ pub(crate) enum ShapeFile {
     Mesh {
         path: String,
     },
+    /// CSG: `Union([..])`, `Intersection([..])`, `Difference(a, b)` of
+    /// [`CsgFile`] solids.
+    Union(Vec<CsgFile>),
+    Intersection(Vec<CsgFile>),
+    Difference(Box<CsgFile>, Box<CsgFile>),
+}
+
+/// A node of a CSG tree: an operation or a solid with an optional
+/// transform (within the CSG shape) and an optional material name.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, rename = "csg")]
+pub(crate) enum CsgFile {
+    Union(Vec<CsgFile>),
+    Intersection(Vec<CsgFile>),
+    Difference(Box<CsgFile>, Box<CsgFile>),
+    Sphere {
+        radius: f32,
+        #[serde(default)]
+        transform: TransformFile,
+        #[serde(default)]
+        material: Option<String>,
+    },
+    Box {
+        half_extents: Vec3,
+        #[serde(default)]
+        transform: TransformFile,
+        #[serde(default)]
+        material: Option<String>,
+    },
+    Cylinder {
+        radius: f32,
+        height: f32,
+        #[serde(default)]
+        transform: TransformFile,
+        #[serde(default)]
+        material: Option<String>,
+    },
+    Cone {
+        radius: f32,
+        height: f32,
+        #[serde(default)]
+        transform: TransformFile,
+        #[serde(default)]
+        material: Option<String>,
+    },
+    /// A closed mesh, path relative to the scene file's directory.
+    Mesh {
+        path: String,
+        #[serde(default)]
+        transform: TransformFile,
+        #[serde(default)]
+        material: Option<String>,
+    },
+    /// Parsed only to be refused with a clear message (no inside).
+    Plane(IgnoredAny),
 }
 
 #[derive(Deserialize)]

@@ -77,6 +77,7 @@
 //! - All colours are linear RGB.
 
 mod convert;
+mod csg;
 mod error;
 mod file;
 mod material;
@@ -90,6 +91,9 @@ use std::path::Path;
 
 use glam::{Mat4, Vec3};
 
+pub use csg::{
+    closed_mesh, Csg, CsgLeaf, CsgNode, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK,
+};
 pub use error::SceneError;
 pub use file::{DEFAULT_AMBIENT, DEFAULT_BACKGROUND, SCENE_FORMAT_VERSION};
 pub use material::{

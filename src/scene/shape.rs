@@ -2,7 +2,7 @@
 
 use glam::{Vec2, Vec3};
 
-use super::Mesh;
+use super::{Csg, Mesh};
 
 /// A base shape in object space. Analytic shapes can be ray-traced or
 /// turned into triangles with [`tessellate`](super::tessellate).
@@ -22,6 +22,9 @@ pub enum Shape {
     Plane(PlaneKind),
     /// Triangle mesh loaded from a file.
     Mesh(Mesh),
+    /// Constructive solid geometry: ray-traced only (raster mode draws
+    /// nothing for it).
+    Csg(Csg),
 }
 
 /// The outline of a [`Shape::Plane`].
@@ -57,6 +60,7 @@ impl Shape {
                 Vec3::new(*radius, 0.0, *radius),
             ),
             Shape::Mesh(mesh) => mesh.bounds(),
+            Shape::Csg(csg) => csg.bounds(),
         }
     }
 
@@ -70,6 +74,7 @@ impl Shape {
             Shape::Plane(PlaneKind::Quad { .. }) => "plane quad",
             Shape::Plane(PlaneKind::Disk { .. }) => "plane disk",
             Shape::Mesh(_) => "mesh",
+            Shape::Csg(_) => "csg",
         }
     }
 
@@ -104,6 +109,7 @@ impl Shape {
             }
             Shape::Plane(PlaneKind::Disk { radius }) => positive("disk radius", *radius),
             Shape::Mesh(mesh) => mesh.validate(),
+            Shape::Csg(csg) => csg.check(),
         }
     }
 }

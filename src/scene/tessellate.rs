@@ -28,7 +28,8 @@ pub const ROUND_SEGMENTS: u32 = 128;
 /// - box: 24 vertices (4 per face) with face normals, 12 triangles;
 /// - plane quad: 4 vertices, 2 triangles; plane disk: [`ROUND_SEGMENTS`] segments.
 ///
-/// [`Shape::Mesh`] returns a clone of the mesh.
+/// [`Shape::Mesh`] returns a clone of the mesh; [`Shape::Csg`] an empty mesh
+/// (CSG is ray-traced only, never rasterized).
 pub fn tessellate(shape: &Shape) -> Mesh {
     let mut b = match shape {
         Shape::Sphere { radius } => sphere(*radius),
@@ -42,6 +43,7 @@ pub fn tessellate(shape: &Shape) -> Mesh {
             b
         }
         Shape::Mesh(mesh) => return mesh.clone(),
+        Shape::Csg(_) => return Mesh::default(),
     };
     b.mesh.source = format!("tessellated {}", shape.kind_name());
     b.mesh

@@ -51,6 +51,10 @@ impl Scene {
             shape
                 .validate()
                 .map_err(|m| SceneError::invalid(format!("shape \"{name}\""), m))?;
+            if let super::Shape::Csg(csg) = shape {
+                csg.check_materials(self.materials.len())
+                    .map_err(|m| SceneError::invalid(format!("shape \"{name}\""), m))?;
+            }
         }
         for (i, instance) in self.instances.iter().enumerate() {
             let context = match self.shape_names.get(instance.shape) {
