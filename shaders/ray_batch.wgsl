@@ -6,6 +6,7 @@
 #include "lib/types.wgsl"
 #include "lib/intersect.wgsl"
 #include "lib/traverse.wgsl"
+#include "lib/csg.wgsl"
 
 @group(0) @binding(0) var<storage, read> instances: array<GpuInstance>;
 @group(0) @binding(1) var<storage, read> shapes: array<GpuShape>;
@@ -14,6 +15,8 @@
 @group(0) @binding(4) var<storage, read> tlas_items: array<u32>;
 @group(0) @binding(5) var<storage, read> rays: array<GpuRay>;
 @group(0) @binding(6) var<storage, read_write> hits: array<GpuHit>;
+@group(0) @binding(7) var<storage, read> csg_ops: array<GpuCsgOp>;
+@group(0) @binding(8) var<storage, read> csg_leaves: array<GpuCsgLeaf>;
 
 const RAY_BATCH_WORKGROUP: u32 = 64u;
 

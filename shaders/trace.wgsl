@@ -8,6 +8,7 @@
 #include "lib/shading.wgsl"
 #include "lib/intersect.wgsl"
 #include "lib/traverse.wgsl"
+#include "lib/csg.wgsl"
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
@@ -19,6 +20,8 @@
 @group(0) @binding(7) var<storage, read> tlas_items: array<u32>;
 // [0]: pixels whose traversal ran out of its step budget.
 @group(0) @binding(8) var<storage, read_write> stats: array<atomic<u32>>;
+@group(0) @binding(9) var<storage, read> csg_ops: array<GpuCsgOp>;
+@group(0) @binding(10) var<storage, read> csg_leaves: array<GpuCsgLeaf>;
 @group(1) @binding(0) var raster_normal_depth: texture_2d<f32>;
 @group(1) @binding(1) var raster_id: texture_2d<u32>;
 @group(1) @binding(2) var out_color: texture_storage_2d<rgba16float, write>;
@@ -85,7 +88,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let t_raster = (nd.w - dot(o - eye, forward)) / dot(d, forward);
             if t_raster < hit.t {
                 // The raster normal already faces the viewer.
-                hit = TraceHit(t_raster, id - 1u, nd.xyz, nd.xyz);
+                hit = TraceHit(t_raster, id - 1u, nd.xyz, nd.xyz, instances[id - 1u].material);
             }
         }
     }
@@ -111,7 +114,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         let p = o + d * hit.t;
         let n = facing_normal(hit, d);
-        let m = materials[instances[hit.instance].material];
+        let m = materials[hit.material];
         var reflectivity = m.reflectivity;
         if bounce == frame.max_bounces {
             reflectivity = 0.0;

@@ -150,6 +150,19 @@ fn twins_match_wgsl_layouts() {
             _pad1
         }
     );
+    check_twin!(trace, GpuCsgOp { op, arg });
+    check_twin!(
+        trace,
+        GpuCsgLeaf {
+            leaf_from_csg,
+            csg_normal_from_leaf,
+            params,
+            kind,
+            blas_root,
+            material,
+            _pad
+        }
+    );
     check_twin!(trace, GpuRay { origin, dir });
     check_twin!(
         trace,
@@ -209,6 +222,18 @@ fn constants_and_workgroup_sizes_match() {
         ("SHAPE_QUAD", SHAPE_QUAD),
         ("SHAPE_DISK", SHAPE_DISK),
         ("SHAPE_MESH", SHAPE_MESH),
+        ("SHAPE_CSG", SHAPE_CSG),
+        ("CSG_OP_END", CSG_OP_END),
+        ("CSG_OP_LEAF", CSG_OP_LEAF),
+        ("CSG_OP_UNION", CSG_OP_UNION),
+        ("CSG_OP_INTERSECTION", CSG_OP_INTERSECTION),
+        ("CSG_OP_DIFFERENCE", CSG_OP_DIFFERENCE),
+        ("CSG_NO_MATERIAL", CSG_NO_MATERIAL),
+        ("CSG_MAX_INTERVALS", CSG_MAX_INTERVALS),
+        ("CSG_STACK", CSG_STACK),
+        ("CSG_MESH_MAX_CROSSINGS", CSG_MESH_MAX_CROSSINGS),
+        ("CSG_ENDPOINTS", 2 * CSG_MAX_INTERVALS),
+        ("CSG_SLOTS", CSG_STACK + 1),
         ("TRAVERSAL_STACK", TRAVERSAL_STACK),
         ("MAX_TRAVERSAL_STEPS", MAX_TRAVERSAL_STEPS),
     ] {
@@ -228,6 +253,12 @@ fn constants_and_workgroup_sizes_match() {
         .expect("ray batch main");
     assert_eq!(main.workgroup_size, [RAY_BATCH_WORKGROUP, 1, 1]);
     assert_eq!(MAX_TOON_BANDS, celray::scene::MAX_TOON_BANDS);
+    assert_eq!(CSG_MAX_INTERVALS, celray::scene::CSG_MAX_INTERVALS);
+    assert_eq!(CSG_STACK, celray::scene::CSG_STACK);
+    assert_eq!(
+        CSG_MESH_MAX_CROSSINGS,
+        celray::scene::CSG_MESH_MAX_CROSSINGS
+    );
     let accumulate = parse("accumulate.wgsl");
     let entry = accumulate
         .entry_points

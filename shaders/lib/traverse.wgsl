@@ -21,6 +21,8 @@ struct TraceHit {
     instance: u32,
     normal: vec3<f32>,
     geometric: vec3<f32>,
+    // Material id: a CSG leaf's own material, else the instance's.
+    material: u32,
 }
 
 fn take_step() -> bool {
@@ -100,6 +102,10 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32)
 
 fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
     let s = shapes[shape];
+    object_material = CSG_NO_MATERIAL;
+    if s.kind == SHAPE_CSG {
+        return intersect_csg(s.blas_root, o, d, t_min, t_max);
+    }
     if s.kind == SHAPE_MESH {
         return intersect_mesh(s.blas_root, o, d, t_min, t_max);
     }
@@ -144,6 +150,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
             if h.hit {
                 best.t = h.t;
                 best.instance = inst;
+                best.material = select(object_material, instances[inst].material, object_material == CSG_NO_MATERIAL);
                 object_normal = h.normal;
                 object_geometric = h.geometric;
                 if any_hit {

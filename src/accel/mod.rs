@@ -6,15 +6,17 @@
 //! twin structs (plain data).
 
 pub mod bvh;
+pub mod csg;
 pub mod intersect;
 
 use glam::{Mat4, Vec3};
 
 use crate::gpu::twins::{
-    BvhNode, GpuShape, GpuTriangle, MAX_TRAVERSAL_STEPS, SHAPE_BOX, SHAPE_CONE, SHAPE_CYLINDER,
-    SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE, TRAVERSAL_STACK,
+    BvhNode, GpuCsgLeaf, GpuCsgOp, GpuShape, GpuTriangle, CSG_NO_MATERIAL, MAX_TRAVERSAL_STEPS,
+    SHAPE_BOX, SHAPE_CONE, SHAPE_CSG, SHAPE_CYLINDER, SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD,
+    SHAPE_SPHERE, TRAVERSAL_STACK,
 };
-use crate::scene::{PlaneKind, Scene, Shape};
+use crate::scene::{Mesh, PlaneKind, Scene, Shape};
 use bvh::Aabb;
 
 /// Triangles per bottom-level leaf and instances per top-level leaf.
@@ -44,10 +46,61 @@ pub struct SceneAccel {
     pub tlas_items: Vec<u32>,
     /// Per GPU instance: (world_from_object, object_from_world, shape).
     pub instances: Vec<(Mat4, Mat4, u32)>,
+    /// Postfix programs of the CSG shapes (each ends with CSG_OP_END).
+    pub csg_ops: Vec<GpuCsgOp>,
+    pub csg_leaves: Vec<GpuCsgLeaf>,
     pub build_ms: f64,
 }
 
-fn shape_params(shape: &Shape) -> (u32, [f32; 4]) {
+/// Builds a mesh's bottom-level BVH, appending its nodes (child indices
+/// relative to `nodes`) and triangles; returns its root node index.
+pub(crate) fn append_mesh_blas(
+    mesh: &Mesh,
+    name: &str,
+    nodes: &mut Vec<BvhNode>,
+    triangles: &mut Vec<GpuTriangle>,
+) -> Result<u32, AccelError> {
+    let tri_bounds: Vec<Aabb> = mesh
+        .indices
+        .chunks_exact(3)
+        .map(|t| {
+            t.iter().fold(Aabb::EMPTY, |b, &i| {
+                b.grow_point(mesh.positions[i as usize])
+            })
+        })
+        .collect();
+    let blas = bvh::build(&tri_bounds, MESH_LEAF);
+    if blas.depth + 2 > TRAVERSAL_STACK {
+        return Err(AccelError::TooDeep {
+            shape: name.to_string(),
+            depth: blas.depth,
+            limit: TRAVERSAL_STACK,
+        });
+    }
+    let node_base = nodes.len() as u32;
+    let tri_base = triangles.len() as u32;
+    for &item in &blas.items {
+        let t = &mesh.indices[item as usize * 3..item as usize * 3 + 3];
+        let p = |k: usize| mesh.positions[t[k] as usize].extend(0.0).to_array();
+        let n = |k: usize| mesh.normals[t[k] as usize].extend(0.0).to_array();
+        triangles.push(GpuTriangle {
+            p0: p(0),
+            p1: p(1),
+            p2: p(2),
+            n0: n(0),
+            n1: n(1),
+            n2: n(2),
+        });
+    }
+    nodes.extend(blas.nodes.iter().map(|n| {
+        let mut n = *n;
+        n.left_or_first += if n.count > 0 { tri_base } else { node_base };
+        n
+    }));
+    Ok(node_base)
+}
+
+pub(crate) fn shape_params(shape: &Shape) -> (u32, [f32; 4]) {
     match shape {
         Shape::Sphere { radius } => (SHAPE_SPHERE, [*radius, 0.0, 0.0, 0.0]),
         Shape::Box { half_extents: h } => (SHAPE_BOX, [h.x, h.y, h.z, 0.0]),
@@ -58,6 +111,7 @@ fn shape_params(shape: &Shape) -> (u32, [f32; 4]) {
         }
         Shape::Plane(PlaneKind::Disk { radius }) => (SHAPE_DISK, [*radius, 0.0, 0.0, 0.0]),
         Shape::Mesh(_) => (SHAPE_MESH, [0.0; 4]),
+        Shape::Csg(_) => (SHAPE_CSG, [0.0; 4]),
     }
 }
 
@@ -70,6 +124,8 @@ impl SceneAccel {
         let mut triangles = Vec::new();
         let mut shapes = Vec::new();
         let mut object_bounds = Vec::new();
+        let mut csg_ops = Vec::new();
+        let mut csg_leaves = Vec::new();
         for (id, shape) in scene.shapes.iter().enumerate() {
             let (kind, params) = shape_params(shape);
             let mut gpu_shape = GpuShape {
@@ -86,45 +142,15 @@ impl SceneAccel {
                 min: lo - pad,
                 max: hi + pad,
             });
+            let name = scene.shape_names.get(id).cloned().unwrap_or_default();
             if let Shape::Mesh(mesh) = shape {
-                let tri_bounds: Vec<Aabb> = mesh
-                    .indices
-                    .chunks_exact(3)
-                    .map(|t| {
-                        t.iter().fold(Aabb::EMPTY, |b, &i| {
-                            b.grow_point(mesh.positions[i as usize])
-                        })
-                    })
-                    .collect();
-                let blas = bvh::build(&tri_bounds, MESH_LEAF);
-                if blas.depth + 2 > TRAVERSAL_STACK {
-                    return Err(AccelError::TooDeep {
-                        shape: scene.shape_names.get(id).cloned().unwrap_or_default(),
-                        depth: blas.depth,
-                        limit: TRAVERSAL_STACK,
-                    });
-                }
-                let node_base = nodes.len() as u32;
-                let tri_base = triangles.len() as u32;
-                gpu_shape.blas_root = node_base;
-                for &item in &blas.items {
-                    let t = &mesh.indices[item as usize * 3..item as usize * 3 + 3];
-                    let p = |k: usize| mesh.positions[t[k] as usize].extend(0.0).to_array();
-                    let n = |k: usize| mesh.normals[t[k] as usize].extend(0.0).to_array();
-                    triangles.push(GpuTriangle {
-                        p0: p(0),
-                        p1: p(1),
-                        p2: p(2),
-                        n0: n(0),
-                        n1: n(1),
-                        n2: n(2),
-                    });
-                }
-                nodes.extend(blas.nodes.iter().map(|n| {
-                    let mut n = *n;
-                    n.left_or_first += if n.count > 0 { tri_base } else { node_base };
-                    n
-                }));
+                gpu_shape.blas_root = append_mesh_blas(mesh, &name, &mut nodes, &mut triangles)?;
+            }
+            if let Shape::Csg(tree) = shape {
+                gpu_shape.blas_root =
+                    csg::compile(tree, &mut csg_ops, &mut csg_leaves, &mut |m| {
+                        append_mesh_blas(m, &name, &mut nodes, &mut triangles)
+                    })?;
             }
             shapes.push(gpu_shape);
         }
@@ -164,6 +190,11 @@ impl SceneAccel {
                 s.blas_root += shift;
             }
         }
+        for leaf in &mut csg_leaves {
+            if leaf.kind == SHAPE_MESH {
+                leaf.blas_root += shift;
+            }
+        }
         let blas_nodes = nodes.split_off(1);
         let mut all = tlas.nodes;
         all.extend(blas_nodes);
@@ -182,6 +213,8 @@ impl SceneAccel {
             triangles,
             tlas_items: tlas.items,
             instances,
+            csg_ops,
+            csg_leaves,
             build_ms,
         })
     }
@@ -220,7 +253,9 @@ impl SceneAccel {
                     self.instances[instance as usize];
                 let o = object_from_world.transform_point3(origin);
                 let d = object_from_world.transform_vector3(dir);
-                if let Some(h) = self.intersect_shape(shape, o, d, t_min, t_best, &mut result) {
+                if let Some((h, material)) =
+                    self.intersect_shape(shape, o, d, t_min, t_best, &mut result)
+                {
                     t_best = h.t;
                     let to_world = world_from_object.inverse().transpose();
                     result.hit = Some(Hit {
@@ -228,6 +263,7 @@ impl SceneAccel {
                         instance,
                         normal: to_world.transform_vector3(h.normal).normalize(),
                         geometric: to_world.transform_vector3(h.geometric).normalize(),
+                        leaf_material: (material != CSG_NO_MATERIAL).then_some(material),
                     });
                 }
                 if result.overflow {
@@ -246,10 +282,20 @@ impl SceneAccel {
         t_min: f32,
         t_max: f32,
         result: &mut TraceResult,
-    ) -> Option<intersect::ObjectHit> {
+    ) -> Option<(intersect::ObjectHit, u32)> {
         let s = self.shapes[shape as usize];
+        if s.kind == SHAPE_CSG {
+            let data = csg::CsgData {
+                ops: &self.csg_ops,
+                leaves: &self.csg_leaves,
+                nodes: &self.nodes,
+                triangles: &self.triangles,
+            };
+            return csg::closest(data, s.blas_root, o, d, t_min, t_max, result);
+        }
         if s.kind != SHAPE_MESH {
-            return intersect::analytic(s.kind, s.params, o, d, t_min, t_max);
+            return intersect::analytic(s.kind, s.params, o, d, t_min, t_max)
+                .map(|h| (h, CSG_NO_MATERIAL));
         }
         let inv = d.recip();
         let mut best: Option<intersect::ObjectHit> = None;
@@ -259,7 +305,7 @@ impl SceneAccel {
             result.steps += 1;
             if result.steps > MAX_TRAVERSAL_STEPS {
                 result.overflow = true;
-                return best;
+                return best.map(|h| (h, CSG_NO_MATERIAL));
             }
             let node = self.nodes[index as usize];
             if intersect::ray_box(o, inv, node.aabb().min, node.aabb().max, t_min, t_best).is_none()
@@ -279,7 +325,7 @@ impl SceneAccel {
                 }
             }
         }
-        best
+        best.map(|h| (h, CSG_NO_MATERIAL))
     }
 }
 
@@ -309,6 +355,9 @@ pub struct Hit {
     pub normal: Vec3,
     /// Unit geometric normal (outward).
     pub geometric: Vec3,
+    /// The material of the CSG leaf hit, when that leaf has one (otherwise
+    /// the instance's material applies).
+    pub leaf_material: Option<u32>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

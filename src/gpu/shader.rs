@@ -26,6 +26,7 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         "lib/traverse.wgsl",
         include_str!("../../shaders/lib/traverse.wgsl"),
     ),
+    ("lib/csg.wgsl", include_str!("../../shaders/lib/csg.wgsl")),
     ("raster.wgsl", include_str!("../../shaders/raster.wgsl")),
     (
         "accumulate.wgsl",

@@ -174,3 +174,50 @@ pub struct GpuHit {
     pub overflow: u32,
     pub _pad: u32,
 }
+
+/// Shape kind of a CSG tree: `blas_root` is the first instruction of its
+/// postfix program in the CSG op buffer.
+pub const SHAPE_CSG: u32 = 7;
+/// CSG program instructions ([`GpuCsgOp::op`]).
+pub const CSG_OP_END: u32 = 0;
+pub const CSG_OP_LEAF: u32 = 1;
+pub const CSG_OP_UNION: u32 = 2;
+pub const CSG_OP_INTERSECTION: u32 = 3;
+pub const CSG_OP_DIFFERENCE: u32 = 4;
+/// [`GpuCsgLeaf::material`] of a leaf that uses the instance's material.
+pub const CSG_NO_MATERIAL: u32 = u32::MAX;
+/// Intervals per CSG stack entry (twin of `scene::CSG_MAX_INTERVALS`).
+pub const CSG_MAX_INTERVALS: u32 = 8;
+/// CSG stack entries (twin of `scene::CSG_STACK`).
+pub const CSG_STACK: u32 = 6;
+/// Crossings a mesh leaf keeps per ray (twin of `scene::CSG_MESH_MAX_CROSSINGS`).
+pub const CSG_MESH_MAX_CROSSINGS: u32 = 8;
+
+/// One instruction of a CSG postfix program. `op` is a `CSG_OP_*`; for
+/// `CSG_OP_LEAF`, `arg` indexes the leaf buffer; for the set operations,
+/// `arg` is 1 when the operands were evaluated in swapped order (the first
+/// operand is on top of the stack).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GpuCsgOp {
+    pub op: u32,
+    pub arg: u32,
+}
+
+/// A CSG leaf: an analytic shape or a mesh (`blas_root`) placed in the CSG
+/// shape's object space, with an optional material.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuCsgLeaf {
+    /// Inverse of the leaf's transform: CSG space to leaf space.
+    pub leaf_from_csg: [[f32; 4]; 4],
+    /// Inverse transpose of the leaf's transform: leaf normals to CSG space.
+    pub csg_normal_from_leaf: [[f32; 4]; 4],
+    pub params: [f32; 4],
+    /// `SHAPE_*` (sphere, box, cylinder, cone or mesh).
+    pub kind: u32,
+    pub blas_root: u32,
+    /// Material id, or [`CSG_NO_MATERIAL`].
+    pub material: u32,
+    pub _pad: u32,
+}

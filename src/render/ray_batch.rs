@@ -32,6 +32,8 @@ impl RayBatch {
                         read_only_storage_entry(4, c),
                         read_only_storage_entry(5, c),
                         read_write_storage_entry(6),
+                        read_only_storage_entry(7, c),
+                        read_only_storage_entry(8, c),
                     ],
                 });
             let pipeline_layout =
@@ -106,6 +108,8 @@ impl RayBatch {
             &scene.tlas_items,
             &ray_buffer,
             &hit_buffer,
+            &scene.csg_ops,
+            &scene.csg_leaves,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()

@@ -52,6 +52,9 @@ pub struct SceneBuffers {
     pub nodes: wgpu::Buffer,
     pub triangles: wgpu::Buffer,
     pub tlas_items: wgpu::Buffer,
+    /// CSG programs and leaves (one dummy element when there are none).
+    pub csg_ops: wgpu::Buffer,
+    pub csg_leaves: wgpu::Buffer,
 }
 
 /// The GPU form of a material.
@@ -203,6 +206,9 @@ impl SceneBuffers {
             if first == end {
                 continue; // a shape nobody instances costs nothing
             }
+            if matches!(shape, Shape::Csg(_)) {
+                continue; // CSG is ray-traced only: raster mode draws nothing for it
+            }
             let tessellated;
             let mesh = match shape {
                 Shape::Mesh(mesh) => mesh,
@@ -292,6 +298,14 @@ impl SceneBuffers {
         if shapes.is_empty() {
             shapes.push(bytemuck::Zeroable::zeroed());
         }
+        let mut csg_ops = accel.csg_ops.clone();
+        if csg_ops.is_empty() {
+            csg_ops.push(bytemuck::Zeroable::zeroed());
+        }
+        let mut csg_leaves = accel.csg_leaves.clone();
+        if csg_leaves.is_empty() {
+            csg_leaves.push(bytemuck::Zeroable::zeroed());
+        }
         let mut tlas_items = accel.tlas_items.clone();
         if tlas_items.is_empty() {
             tlas_items.push(0);
@@ -305,6 +319,10 @@ impl SceneBuffers {
                 "triangle buffer (bytes)",
                 triangles.len() * std::mem::size_of::<crate::gpu::twins::GpuTriangle>(),
             ),
+            (
+                "CSG leaf buffer (bytes)",
+                csg_leaves.len() * std::mem::size_of::<crate::gpu::twins::GpuCsgLeaf>(),
+            ),
         ] {
             check_limit(what, bytes as u64, binding_limit)?;
         }
@@ -314,6 +332,8 @@ impl SceneBuffers {
             nodes: storage_buffer(gpu, "scene BVH nodes", &accel.nodes),
             triangles: storage_buffer(gpu, "scene triangles", &triangles),
             tlas_items: storage_buffer(gpu, "scene top-level items", &tlas_items),
+            csg_ops: storage_buffer(gpu, "scene CSG programs", &csg_ops),
+            csg_leaves: storage_buffer(gpu, "scene CSG leaves", &csg_leaves),
             accel,
             vertices: gpu
                 .device

@@ -80,6 +80,9 @@ impl TracePass {
                             read_only_storage_entry(6, c),
                             read_only_storage_entry(7, c),
                             read_write_storage_entry(8),
+                            // CSG programs and leaves (shaders/lib/csg.wgsl).
+                            read_only_storage_entry(9, c),
+                            read_only_storage_entry(10, c),
                         ],
                     });
             let float = wgpu::TextureSampleType::Float { filterable: false };
@@ -148,6 +151,8 @@ impl TracePass {
             &scene.triangles,
             &scene.tlas_items,
             &self.stats,
+            &scene.csg_ops,
+            &scene.csg_leaves,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()

@@ -1,0 +1,303 @@
+// CSG by intervals: the WGSL twin of src/accel/csg.rs (same steps, same
+// order, same epsilon). A CSG shape's `blas_root` is the first instruction
+// of its postfix program in `csg_ops`; a leaf instruction pushes the spans
+// of t where the ray is inside that leaf (`csg_leaves[arg]`), a set
+// operation pops two span lists and pushes their union, intersection or
+// difference. A list is a sorted run of endpoints (entry, exit, ...), each
+// with the outward normal of the partial solid (CSG object space, not unit)
+// and the leaf's material. The first endpoint in (t_min, t_max) is the hit.
+//
+// Fixed storage: CSG_STACK entries of 2 * CSG_MAX_INTERVALS endpoints, plus
+// one scratch entry. Trees that could need more are refused at load (see
+// src/scene/csg.rs); a mesh leaf crossed more than CSG_MESH_MAX_CROSSINGS
+// times, or a list that overflows anyway, sets `overflowed` (a magenta
+// pixel and a count), never a silent wrong answer. Every instruction and
+// every sweep step spends one `take_step()` of the invocation's budget.
+//
+// Epsilon strategy (csg_push): two consecutive endpoints of a list closer
+// than CSG_EPS_ABS + CSG_EPS_REL * |t| cancel each other, after every leaf
+// and every operation: a gap that short is closed, an interval that short is
+// dropped. Coincident surfaces of two leaves differ only by rounding (~1e-7
+// relative), grazing rays give vanishing intervals: both resolve the same
+// way at every pixel, so no speckles.
+//
+// Includes: after intersect.wgsl and traverse.wgsl; the pass declares
+// `csg_ops` and `csg_leaves`.
+
+const SHAPE_CSG: u32 = 7u;
+const CSG_OP_END: u32 = 0u;
+const CSG_OP_LEAF: u32 = 1u;
+const CSG_OP_UNION: u32 = 2u;
+const CSG_OP_INTERSECTION: u32 = 3u;
+const CSG_OP_DIFFERENCE: u32 = 4u;
+const CSG_NO_MATERIAL: u32 = 0xffffffffu;
+const CSG_MAX_INTERVALS: u32 = 8u;
+const CSG_STACK: u32 = 6u;
+const CSG_MESH_MAX_CROSSINGS: u32 = 8u;
+// 2 * CSG_MAX_INTERVALS endpoints per entry, CSG_STACK + 1 entries.
+const CSG_ENDPOINTS: u32 = 16u;
+const CSG_SLOTS: u32 = 7u;
+const CSG_FAR: f32 = 1.0e30;
+const CSG_EPS_ABS: f32 = 1.0e-5;
+const CSG_EPS_REL: f32 = 1.0e-5;
+
+struct GpuCsgOp {
+    op: u32,
+    arg: u32,
+}
+
+struct GpuCsgLeaf {
+    leaf_from_csg: mat4x4<f32>,
+    csg_normal_from_leaf: mat4x4<f32>,
+    params: vec4<f32>,
+    kind: u32,
+    blas_root: u32,
+    material: u32,
+    _pad: u32,
+}
+
+// Endpoint storage: entry s of the stack lives in physical slot
+// csg_slot[s]; endpoint k of slot p is at p * CSG_ENDPOINTS + k.
+var<private> csg_t: array<f32, 112>;
+var<private> csg_n: array<vec3<f32>, 112>;
+var<private> csg_mat: array<u32, 112>;
+var<private> csg_len: array<u32, 7>;
+var<private> csg_slot: array<u32, 7>;
+// The material of the last CSG hit (CSG_NO_MATERIAL: the instance's).
+var<private> object_material: u32;
+
+fn csg_eps(t: f32) -> f32 {
+    return CSG_EPS_ABS + CSG_EPS_REL * abs(t);
+}
+
+// Appends an endpoint to slot p, or cancels it against the last one when
+// the two are closer than csg_eps (see the epsilon strategy above).
+fn csg_push(p: u32, t: f32, n: vec3<f32>, m: u32) {
+    let len = csg_len[p];
+    let base = p * CSG_ENDPOINTS;
+    if len > 0u && t - csg_t[base + len - 1u] < csg_eps(t) {
+        csg_len[p] = len - 1u;
+        return;
+    }
+    if len >= CSG_ENDPOINTS {
+        overflowed = true;
+        return;
+    }
+    csg_t[base + len] = t;
+    csg_n[base + len] = n;
+    csg_mat[base + len] = m;
+    csg_len[p] = len + 1u;
+}
+
+// Every crossing of the line with a mesh leaf, sorted, reduced to
+// alternating entries and exits (an entry runs against the geometric
+// normal; a repeated entry or exit, the same crossing found twice on a
+// shared edge, is skipped).
+fn csg_mesh_leaf(p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>) {
+    var ts: array<f32, CSG_MESH_MAX_CROSSINGS>;
+    var ns: array<vec3<f32>, CSG_MESH_MAX_CROSSINGS>;
+    var entering: array<bool, CSG_MESH_MAX_CROSSINGS>;
+    var count = 0u;
+    let inv_d = 1.0 / d;
+    var stack: array<u32, TRAVERSAL_STACK>;
+    var sp = 1u;
+    stack[0] = leaf.blas_root;
+    while sp > 0u {
+        if !take_step() {
+            return;
+        }
+        sp -= 1u;
+        let node = nodes[stack[sp]];
+        let span = node_span(node, o, inv_d, -CSG_FAR, CSG_FAR);
+        if span.x > span.y {
+            continue;
+        }
+        if node.count == 0u {
+            if sp + 2u > TRAVERSAL_STACK {
+                overflowed = true;
+                return;
+            }
+            stack[sp] = node.left_or_first + 1u;
+            stack[sp + 1u] = node.left_or_first;
+            sp += 2u;
+            continue;
+        }
+        for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
+            let h = intersect_triangle(o, d, triangles[k], -CSG_FAR, CSG_FAR);
+            if !h.hit {
+                continue;
+            }
+            if count >= CSG_MESH_MAX_CROSSINGS {
+                overflowed = true;
+                return;
+            }
+            // Insertion sort by t; ties keep discovery order.
+            var at = count;
+            while at > 0u && ts[at - 1u] > h.t {
+                ts[at] = ts[at - 1u];
+                ns[at] = ns[at - 1u];
+                entering[at] = entering[at - 1u];
+                at -= 1u;
+            }
+            ts[at] = h.t;
+            ns[at] = h.normal;
+            entering[at] = dot(h.geometric, d) < 0.0;
+            count += 1u;
+        }
+    }
+    var inside = false;
+    for (var k = 0u; k < count; k++) {
+        if entering[k] != inside {
+            csg_push(p, ts[k], (leaf.csg_normal_from_leaf * vec4<f32>(ns[k], 0.0)).xyz, leaf.material);
+            inside = entering[k];
+        }
+    }
+    if inside {
+        csg_len[p] -= 1u;
+    }
+}
+
+// The spans of the whole line inside a leaf, into slot p.
+fn csg_leaf(p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>) {
+    csg_len[p] = 0u;
+    let lo = (leaf.leaf_from_csg * vec4<f32>(o, 1.0)).xyz;
+    let ld = (leaf.leaf_from_csg * vec4<f32>(d, 0.0)).xyz;
+    if leaf.kind == SHAPE_MESH {
+        csg_mesh_leaf(p, leaf, lo, ld);
+        return;
+    }
+    // Convex: the first boundary on the line is the entry, the next the exit.
+    let entry = intersect_analytic(leaf.kind, leaf.params, lo, ld, -CSG_FAR, CSG_FAR);
+    if !entry.hit {
+        return;
+    }
+    let exit = intersect_analytic(leaf.kind, leaf.params, lo, ld, entry.t, CSG_FAR);
+    if !exit.hit {
+        return;
+    }
+    csg_push(p, entry.t, (leaf.csg_normal_from_leaf * vec4<f32>(entry.normal, 0.0)).xyz, leaf.material);
+    csg_push(p, exit.t, (leaf.csg_normal_from_leaf * vec4<f32>(exit.normal, 0.0)).xyz, leaf.material);
+}
+
+// Slot `out` = slot a (op) slot b, by one sweep over both sorted lists.
+// Endpoints of a subtracted solid get flipped normals: its entry is where
+// the result is left, and the outward normal there points into it.
+fn csg_combine(op: u32, a: u32, b: u32, out: u32) {
+    csg_len[out] = 0u;
+    let na = csg_len[a];
+    let nb = csg_len[b];
+    var i = 0u;
+    var j = 0u;
+    var in_a = false;
+    var in_b = false;
+    loop {
+        if i >= na && j >= nb {
+            break;
+        }
+        if op != CSG_OP_UNION && i >= na {
+            break;
+        }
+        if op == CSG_OP_INTERSECTION && j >= nb {
+            break;
+        }
+        if !take_step() {
+            return;
+        }
+        var k: u32;
+        var sign = 1.0;
+        if j >= nb || (i < na && csg_t[a * CSG_ENDPOINTS + i] <= csg_t[b * CSG_ENDPOINTS + j]) {
+            k = a * CSG_ENDPOINTS + i;
+            i += 1u;
+            in_a = !in_a;
+        } else {
+            k = b * CSG_ENDPOINTS + j;
+            j += 1u;
+            in_b = !in_b;
+            if op == CSG_OP_DIFFERENCE {
+                sign = -1.0;
+            }
+        }
+        var inside: bool;
+        if op == CSG_OP_UNION {
+            inside = in_a || in_b;
+        } else if op == CSG_OP_INTERSECTION {
+            inside = in_a && in_b;
+        } else {
+            inside = in_a && !in_b;
+        }
+        if inside != ((csg_len[out] & 1u) == 1u) {
+            csg_push(out, csg_t[k], csg_n[k] * sign, csg_mat[k]);
+        }
+    }
+}
+
+// The closest boundary of the CSG program at `start` in (t_min, t_max), in
+// CSG object space; sets object_material.
+fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+    for (var s = 0u; s < CSG_SLOTS; s++) {
+        csg_slot[s] = s;
+    }
+    var sp = 0u;
+    var pc = start;
+    loop {
+        if !take_step() {
+            return no_hit();
+        }
+        let op = csg_ops[pc];
+        pc += 1u;
+        if op.op == CSG_OP_END {
+            break;
+        }
+        if op.op == CSG_OP_LEAF {
+            if sp >= CSG_STACK {
+                overflowed = true;
+                return no_hit();
+            }
+            csg_leaf(csg_slot[sp], csg_leaves[op.arg], o, d);
+        } else {
+            if sp < 2u {
+                overflowed = true;
+                return no_hit();
+            }
+            var a = csg_slot[sp - 2u];
+            var b = csg_slot[sp - 1u];
+            if op.arg == 1u {
+                let swap = a;
+                a = b;
+                b = swap;
+            }
+            // The free slot above the top takes the result; it then becomes
+            // entry sp - 2 and that entry's old slot the free one.
+            let out = csg_slot[sp];
+            csg_combine(op.op, a, b, out);
+            csg_slot[sp] = csg_slot[sp - 2u];
+            csg_slot[sp - 2u] = out;
+            sp -= 2u;
+        }
+        sp += 1u;
+        if overflowed {
+            return no_hit();
+        }
+    }
+    if sp != 1u {
+        overflowed = true;
+        return no_hit();
+    }
+    let r = csg_slot[0];
+    let len = csg_len[r];
+    for (var k = 0u; k < len; k++) {
+        if !take_step() {
+            return no_hit();
+        }
+        let i = r * CSG_ENDPOINTS + k;
+        let t = csg_t[i];
+        if t > t_min {
+            if t < t_max {
+                object_material = csg_mat[i];
+                return ObjectHit(true, t, csg_n[i], csg_n[i]);
+            }
+            break;
+        }
+    }
+    return no_hit();
+}
