@@ -438,7 +438,7 @@ fn sizes_over_gpu_limits_fail_with_the_limit_named() {
     // Enough instances that their matrices overflow the storage-buffer
     // binding limit (128 MiB on lavapipe; computed from the device).
     let per_instance = std::mem::size_of::<celray::gpu::twins::GpuInstance>() as u64;
-    let count = gpu.device.limits().max_storage_buffer_binding_size as u64 / per_instance + 1;
+    let count = gpu.device.limits().max_storage_buffer_binding_size / per_instance + 1;
     let mut big = scene;
     let one = big.instances[0].clone();
     big.instances = vec![one; count as usize];

@@ -70,6 +70,7 @@ impl SceneAccel {
         let mut triangles = Vec::new();
         let mut shapes = Vec::new();
         let mut object_bounds = Vec::new();
+        let mut max_blas_depth = 0;
         for (id, shape) in scene.shapes.iter().enumerate() {
             let (kind, params) = shape_params(shape);
             let mut gpu_shape = GpuShape {
@@ -97,11 +98,12 @@ impl SceneAccel {
                     })
                     .collect();
                 let blas = bvh::build(&tri_bounds, MESH_LEAF);
-                if blas.depth + 2 > TRAVERSAL_STACK {
+                max_blas_depth = max_blas_depth.max(blas.depth);
+                if blas.depth > TRAVERSAL_STACK / 2 {
                     return Err(AccelError::TooDeep {
                         shape: scene.shape_names.get(id).cloned().unwrap_or_default(),
                         depth: blas.depth,
-                        limit: TRAVERSAL_STACK,
+                        limit: TRAVERSAL_STACK / 2,
                     });
                 }
                 let node_base = nodes.len() as u32;
@@ -145,10 +147,12 @@ impl SceneAccel {
             .map(|(m, _, s)| object_bounds[*s as usize].transformed(*m))
             .collect();
         let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
-        if tlas.depth + 2 > TRAVERSAL_STACK {
+        // One stack serves both levels, holding at most one entry per level
+        // of the top-level path plus one per level of a mesh's path.
+        if tlas.depth + max_blas_depth > TRAVERSAL_STACK {
             return Err(AccelError::TooDeep {
-                shape: "(top level)".into(),
-                depth: tlas.depth,
+                shape: "(top level + deepest mesh)".into(),
+                depth: tlas.depth + max_blas_depth,
                 limit: TRAVERSAL_STACK,
             });
         }

@@ -159,7 +159,7 @@ impl SceneBuffers {
     /// message naming the limit.
     pub fn upload(gpu: &Gpu, scene: &Scene) -> Result<SceneBuffers, GpuError> {
         let limits = gpu.device.limits();
-        let binding_limit = u64::from(limits.max_storage_buffer_binding_size);
+        let binding_limit = limits.max_storage_buffer_binding_size;
 
         // Instances sorted by base shape, then by culling: each (shape, cull)
         // group is one contiguous range, drawn by one instanced draw.
