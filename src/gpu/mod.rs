@@ -6,7 +6,7 @@ pub mod readback;
 pub mod shader;
 pub mod twins;
 
-pub use context::{list_adapters, AdapterChoice, AdapterSummary, Gpu};
+pub use context::{list_adapters, pick_adapter, AdapterChoice, AdapterSummary, Gpu};
 
 /// What can go wrong on the GPU side.
 #[derive(Debug, thiserror::Error)]

@@ -137,7 +137,7 @@ impl SceneBuffers {
     /// message naming the limit.
     pub fn upload(gpu: &Gpu, scene: &Scene) -> Result<SceneBuffers, GpuError> {
         let limits = gpu.device.limits();
-        let binding_limit = u64::from(limits.max_storage_buffer_binding_size);
+        let binding_limit = limits.max_storage_buffer_binding_size;
 
         // Instances sorted by base shape: each shape's instances are one range.
         let mut order: Vec<usize> = (0..scene.instances.len()).collect();
