@@ -217,8 +217,12 @@ fn outline_width_is_in_pixels_at_any_resolution() {
         let scene = scene(&ron);
         let (img, ids) = render(&gpu, scene.clone(), pixel_centre_settings(&scene));
         let y = size / 2;
-        let first_sphere = (0..size).find(|&x| ids[(y * size + x) as usize] != 0).expect("sphere on the scanline");
-        let outline: Vec<u32> = (0..first_sphere).filter(|&x| rgb_at(&img, size, x, y) == [255, 0, 255]).collect();
+        let first_sphere = (0..size)
+            .find(|&x| ids[(y * size + x) as usize] != 0)
+            .expect("sphere on the scanline");
+        let outline: Vec<u32> = (0..first_sphere)
+            .filter(|&x| rgb_at(&img, size, x, y) == [255, 0, 255])
+            .collect();
         assert_eq!(
             outline,
             vec![first_sphere - 3, first_sphere - 2, first_sphere - 1],
