@@ -5,7 +5,10 @@
 //! math) at the bottom, `gpu` (wgpu plumbing), `render` (the passes),
 //! `capture` (headless images) and, behind the `app` feature, the window.
 
+#[cfg(feature = "app")]
+pub mod app;
 pub mod capture;
+pub mod compare;
 pub mod gpu;
 pub mod render;
 pub mod sampling;
