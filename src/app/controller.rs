@@ -102,6 +102,11 @@ fn perpendicular(axis: Vec3, hint: Vec3) -> Vec3 {
         .unwrap_or_else(|| axis.any_orthonormal_vector())
 }
 
+/// The angle between `v` and `up`, accurate near 0 and PI (unlike acos).
+pub fn polar_angle(v: Vec3, up: Vec3) -> f32 {
+    v.cross(up).length().atan2(v.dot(up))
+}
+
 /// Turns `offset` (from the pivot) by `yaw` about `up` and changes its
 /// angle from `up` by `pitch`, keeping that angle in [MIN_POLAR, PI - MIN_POLAR].
 /// `hint` picks the direction to leave the pole in when `offset` lies on it.
@@ -111,7 +116,7 @@ fn turn(offset: Vec3, up: Vec3, yaw: f32, pitch: f32, hint: Vec3) -> Vec3 {
         return offset;
     }
     let dir = Quat::from_axis_angle(up, yaw) * (offset / r);
-    let polar = dir.dot(up).clamp(-1.0, 1.0).acos();
+    let polar = polar_angle(dir, up);
     let new_polar = (polar + pitch).clamp(MIN_POLAR, PI - MIN_POLAR);
     let horizontal = perpendicular(up, dir + hint * 1e-6);
     (up * new_polar.cos() + horizontal * new_polar.sin()) * r
@@ -386,7 +391,7 @@ mod tests {
                 assert_eq!(cam.target, target);
                 let d1 = cam.eye.distance(cam.target);
                 assert!((d1 - d0).abs() < 1e-4 * d0, "{d1} vs {d0}");
-                let polar = (cam.eye - cam.target).normalize().dot(Vec3::Y).acos();
+                let polar = polar_angle(cam.eye - cam.target, Vec3::Y);
                 assert!(
                     (MIN_POLAR * 0.99..=PI - MIN_POLAR * 0.99).contains(&polar),
                     "{polar}"

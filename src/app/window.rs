@@ -27,9 +27,10 @@ use crate::render::resolve::ResolvePass;
 use crate::render::{RenderSettings, Renderer};
 use crate::scene::{Camera, Scene};
 
-/// Format of each view's image: the resolve pass writes linear values that
-/// the hardware encodes; egui samples them back to linear.
-const VIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// Format of each view's image. egui 0.37 treats textures as holding
+/// sRGB-encoded ("gamma") values, so the view textures are not sRGB formats
+/// and the resolve pass encodes in the shader.
+const VIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 /// Wait this long after a file change before reloading (editors write in steps).
 const RELOAD_DELAY: Duration = Duration::from_millis(120);
 
