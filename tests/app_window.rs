@@ -24,7 +24,15 @@ impl Drop for Xvfb {
 
 fn start_xvfb() -> Xvfb {
     let mut child = Command::new("Xvfb")
-        .args(["-displayfd", "1", "-screen", "0", "1600x1000x24", "-nolisten", "tcp"])
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "1600x1000x24",
+            "-nolisten",
+            "tcp",
+        ])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -133,7 +141,11 @@ fn window_screenshot_shows_the_scene_and_the_panel() {
         .collect();
     let dark = panel.iter().filter(|p| luma(p) < 60.0).count();
     let text = panel.iter().filter(|p| luma(p) > 140.0).count();
-    assert!(dark > panel.len() * 6 / 10, "panel not dark: {dark} of {}", panel.len());
+    assert!(
+        dark > panel.len() * 6 / 10,
+        "panel not dark: {dark} of {}",
+        panel.len()
+    );
     assert!(text > 500, "no panel text: {text} light pixels");
 
     // The scene on the right: the sky colour at the top (background
@@ -152,7 +164,11 @@ fn window_screenshot_shows_the_scene_and_the_panel() {
         .map(|(x, y)| img.get_pixel(x, y).0)
         .collect();
     let distinct: std::collections::BTreeSet<[u8; 3]> = scene.iter().copied().collect();
-    assert!(distinct.len() > 200, "only {} colours in the view", distinct.len());
+    assert!(
+        distinct.len() > 200,
+        "only {} colours in the view",
+        distinct.len()
+    );
     let red = scene
         .iter()
         .filter(|p| p[0] > 150 && p[1] < 90 && p[2] < 90)
@@ -195,16 +211,26 @@ fn four_views_in_a_grid_are_labelled() {
         let left = x0 + qx * w / 2;
         let top = qy * h / 2;
         let sky = img.get_pixel(left + w / 2 - 12, top + 6).0;
-        assert!(sky[2] > 200 && sky[0] > 170, "quadrant ({qx}, {qy}) sky {sky:?}");
+        assert!(
+            sky[2] > 200 && sky[0] > 170,
+            "quadrant ({qx}, {qy}) sky {sky:?}"
+        );
         let label = img.get_pixel(left + 6, top + 12).0;
-        assert!(label.iter().all(|&c| c < 110), "quadrant ({qx}, {qy}) label {label:?}");
+        assert!(
+            label.iter().all(|&c| c < 110),
+            "quadrant ({qx}, {qy}) label {label:?}"
+        );
     }
 }
 
 #[test]
 fn without_a_display_view_fails_with_a_message() {
     let dir = scratch("no-display");
-    let out = run_celray(&["view", "--exit-after-frames", "1", "--no-watch"], None, &dir);
+    let out = run_celray(
+        &["view", "--exit-after-frames", "1", "--no-watch"],
+        None,
+        &dir,
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("cannot open a window"), "{stderr}");
@@ -216,7 +242,10 @@ fn bad_view_arguments_fail_before_opening_a_window() {
     let dir = scratch("bad-args");
     for (args, needle) in [
         (vec!["view", "--views", "toon:4,nope"], "view 2"),
-        (vec!["view", "--views", "toon,toon,toon,toon,toon"], "at most 4"),
+        (
+            vec!["view", "--views", "toon,toon,toon,toon,toon"],
+            "at most 4",
+        ),
         (vec!["view", "--layout", "diagonal"], "--layout"),
         (vec!["view", "nothere.ron"], "nothere.ron"),
     ] {

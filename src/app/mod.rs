@@ -99,6 +99,9 @@ pub struct RunReport {
     pub surface_size: (u32, u32),
     pub views: usize,
     pub samples: Vec<u32>,
+    /// GPU pass times of the frames that were timed (empty without
+    /// timestamp queries).
+    pub pass_times: Vec<timing::PassTimes>,
 }
 
 /// Opens the window and runs until it is closed (or `exit_after_frames`).

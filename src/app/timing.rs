@@ -184,10 +184,10 @@ impl GpuTimer {
     }
 
     /// Reads finished results into [`GpuTimer::latest`]. Call once a frame
-    /// (after a non-blocking device poll).
-    pub fn collect(&mut self) {
+    /// (after a non-blocking device poll). True when a result came in.
+    pub fn collect(&mut self) -> bool {
         if self.state.load(Ordering::Acquire) != MAPPED {
-            return;
+            return false;
         }
         let ticks: Vec<u64> = match self.readback.slice(..).get_mapped_range() {
             Ok(view) => bytemuck::cast_slice(&view).to_vec(),
@@ -196,7 +196,7 @@ impl GpuTimer {
         self.readback.unmap();
         self.state.store(IDLE, Ordering::Release);
         if ticks.len() < (BUFFER_SIZE / 8) as usize {
-            return;
+            return false;
         }
         let ms = |a: u32, b: u32| -> f64 {
             let (ta, tb) = (ticks[slot_index(a)], ticks[slot_index(b)]);
@@ -217,6 +217,7 @@ impl GpuTimer {
         times.resolve_ms = ms(RESOLVE_SLOT, RESOLVE_SLOT + 1);
         times.egui_ms = ms(EGUI_SLOT, EGUI_SLOT + 1);
         self.latest = Some(times);
+        true
     }
 }
 
@@ -262,6 +263,23 @@ impl FrameStats {
             .map(|l| l.elapsed().min(max))
             .unwrap_or(Duration::ZERO)
     }
+}
+
+/// Mean GPU milliseconds per pass over `times` (frames that sampled).
+pub fn mean_pass_times(times: &[PassTimes]) -> Option<PassTimes> {
+    let sampled: Vec<&PassTimes> = times.iter().filter(|t| t.views_sampled > 0).collect();
+    if sampled.is_empty() {
+        return None;
+    }
+    let n = sampled.len() as f64;
+    let mean = |f: fn(&PassTimes) -> f64| sampled.iter().map(|t| f(t)).sum::<f64>() / n;
+    Some(PassTimes {
+        raster_ms: mean(|t| t.raster_ms),
+        accumulate_ms: mean(|t| t.accumulate_ms),
+        resolve_ms: mean(|t| t.resolve_ms),
+        egui_ms: mean(|t| t.egui_ms),
+        views_sampled: sampled[0].views_sampled,
+    })
 }
 
 /// Mean, median, 95th percentile and maximum of `ms`, skipping the first

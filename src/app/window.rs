@@ -27,10 +27,11 @@ use crate::render::resolve::ResolvePass;
 use crate::render::{RenderSettings, Renderer};
 use crate::scene::{Camera, Scene};
 
-/// Format of each view's image. egui 0.37 treats textures as holding
-/// sRGB-encoded ("gamma") values, so the view textures are not sRGB formats
-/// and the resolve pass encodes in the shader.
-const VIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Format of each view's image when egui draws it (the fallback for
+/// surfaces that cannot be copied into). egui 0.37 treats textures as
+/// holding sRGB-encoded ("gamma") values, so it is not an sRGB format and
+/// the resolve pass encodes in the shader.
+const EGUI_VIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 /// Wait this long after a file change before reloading (editors write in steps).
 const RELOAD_DELAY: Duration = Duration::from_millis(120);
 
@@ -39,7 +40,33 @@ enum AppEvent {
     FilesChanged(Changed),
 }
 
+/// A `WAYLAND_DISPLAY` whose socket is gone makes winit panic instead of
+/// trying X11: forget it (with a warning) when its socket does not exist.
+fn drop_stale_wayland_display() {
+    let Some(name) = std::env::var_os("WAYLAND_DISPLAY") else {
+        return;
+    };
+    let path = PathBuf::from(&name);
+    let socket = if path.is_absolute() {
+        path
+    } else {
+        match std::env::var_os("XDG_RUNTIME_DIR") {
+            Some(dir) => PathBuf::from(dir).join(path),
+            None => path,
+        }
+    };
+    if !socket.exists() {
+        log::warn!(
+            "WAYLAND_DISPLAY={} has no socket at {}; using X11",
+            name.to_string_lossy(),
+            socket.display()
+        );
+        std::env::remove_var("WAYLAND_DISPLAY");
+    }
+}
+
 pub fn run(options: ViewOptions) -> Result<RunReport, AppError> {
+    drop_stale_wayland_display();
     let event_loop = EventLoop::<AppEvent>::with_user_event()
         .build()
         .map_err(|e| AppError::EventLoop(e.to_string()))?;
@@ -63,6 +90,7 @@ pub fn run(options: ViewOptions) -> Result<RunReport, AppError> {
         surface_size: (0, 0),
         views: 0,
         samples: Vec::new(),
+        pass_times: Vec::new(),
     }))
 }
 
@@ -83,10 +111,12 @@ struct Applied {
     settings: RenderSettings,
 }
 
-/// One of the four view slots: a texture egui shows (its id never changes)
-/// and, while the layout shows the slot, a renderer drawing into it.
+/// One of the four view slots: the texture the view is resolved into and,
+/// while the layout shows the slot, a renderer drawing into it. The texture
+/// is copied into the window (fast on a CPU driver), or, where the surface
+/// cannot be copied into, drawn by egui under `tex_id` (which never changes).
 struct ViewSlot {
-    tex_id: egui::TextureId,
+    tex_id: Option<egui::TextureId>,
     texture: wgpu::Texture,
     view: wgpu::TextureView,
     renderer: Option<(Renderer, ResolvePass)>,
@@ -95,7 +125,11 @@ struct ViewSlot {
     shown: Option<u32>,
 }
 
-fn view_texture(gpu: &Gpu, size: (u32, u32)) -> (wgpu::Texture, wgpu::TextureView) {
+fn view_texture(
+    gpu: &Gpu,
+    size: (u32, u32),
+    format: wgpu::TextureFormat,
+) -> (wgpu::Texture, wgpu::TextureView) {
     let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("view image"),
         size: wgpu::Extent3d {
@@ -106,7 +140,7 @@ fn view_texture(gpu: &Gpu, size: (u32, u32)) -> (wgpu::Texture, wgpu::TextureVie
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: VIEW_FORMAT,
+        format,
         usage: wgpu::TextureUsages::RENDER_ATTACHMENT
             | wgpu::TextureUsages::TEXTURE_BINDING
             | wgpu::TextureUsages::COPY_SRC,
@@ -116,8 +150,19 @@ fn view_texture(gpu: &Gpu, size: (u32, u32)) -> (wgpu::Texture, wgpu::TextureVie
     (texture, view)
 }
 
+/// A copy of (part of) a view's texture into the window.
+struct Placement {
+    slot: usize,
+    src: (u32, u32),
+    dst: (u32, u32),
+    size: (u32, u32),
+}
+
 struct Running {
     window: Arc<Window>,
+    /// Views are copied into the surface (else drawn by egui).
+    direct: bool,
+    view_format: wgpu::TextureFormat,
     gpu: Gpu,
     surface: wgpu::Surface<'static>,
     config: wgpu::SurfaceConfiguration,
@@ -140,6 +185,8 @@ struct Running {
     repaint_at: Option<Instant>,
     /// Where F12 and the panel's buttons save.
     screenshot_dir: PathBuf,
+    /// GPU pass times of the timed frames, for `--report-frame-times`.
+    pass_times: Vec<timing::PassTimes>,
 }
 
 impl App {
@@ -188,8 +235,16 @@ impl App {
             .or_else(|| caps.formats.first().copied())
             .ok_or_else(|| AppError::Surface("the surface offers no format".into()))?;
         let size = window.inner_size();
+        // Copying the views into the surface costs far less than drawing
+        // them as egui images on a CPU driver; it needs COPY_DST.
+        let direct = caps.usages.contains(wgpu::TextureUsages::COPY_DST);
+        let view_format = if direct { format } else { EGUI_VIEW_FORMAT };
         let config = wgpu::SurfaceConfiguration {
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            usage: if direct {
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_DST
+            } else {
+                wgpu::TextureUsages::RENDER_ATTACHMENT
+            },
             format,
             width: size.width.max(1),
             height: size.height.max(1),
@@ -212,16 +267,26 @@ impl App {
             window.theme(),
             Some(gpu.device.limits().max_texture_dimension_2d as usize),
         );
-        let mut egui_renderer =
-            egui_wgpu::Renderer::new(&gpu.device, format, egui_wgpu::RendererOptions::default());
+        let mut egui_renderer = egui_wgpu::Renderer::new(
+            &gpu.device,
+            format,
+            // Dithering costs 40% of egui's GPU time on a CPU driver, for
+            // no visible gain on an 8-bit panel.
+            egui_wgpu::RendererOptions {
+                dithering: false,
+                ..Default::default()
+            },
+        );
         let slots = (0..timing::MAX_VIEWS)
             .map(|_| {
-                let (texture, view) = view_texture(&gpu, (1, 1));
-                let tex_id = egui_renderer.register_native_texture(
-                    &gpu.device,
-                    &view,
-                    wgpu::FilterMode::Nearest,
-                );
+                let (texture, view) = view_texture(&gpu, (1, 1), view_format);
+                let tex_id = (!direct).then(|| {
+                    egui_renderer.register_native_texture(
+                        &gpu.device,
+                        &view,
+                        wgpu::FilterMode::Nearest,
+                    )
+                });
                 ViewSlot {
                     tex_id,
                     texture,
@@ -244,6 +309,8 @@ impl App {
         let mut running = Running {
             timer: GpuTimer::new(&gpu),
             present_modes: caps.present_modes,
+            direct,
+            view_format,
             window,
             gpu,
             surface,
@@ -262,6 +329,7 @@ impl App {
             pending_reload: None,
             repaint_at: None,
             screenshot_dir: o.screenshot_dir.clone(),
+            pass_times: Vec::new(),
         };
         running.configure();
         if o.watch {
@@ -286,6 +354,7 @@ impl App {
                 surface_size: (r.config.width, r.config.height),
                 views: r.model.layout.view_count(),
                 samples: r.samples_shown(),
+                pass_times: r.pass_times.clone(),
             });
         }
         event_loop.exit();
@@ -543,7 +612,7 @@ impl Running {
             };
             let built = Renderer::new(&self.gpu, old.scene().clone(), old.settings().clone())
                 .and_then(|r| {
-                    let pass = r.new_resolve_pass(&self.gpu, VIEW_FORMAT)?;
+                    let pass = r.new_resolve_pass(&self.gpu, self.view_format)?;
                     Ok((r, pass))
                 });
             match built {
@@ -632,13 +701,15 @@ impl Running {
             };
             let slot = &mut self.slots[i];
             if (slot.texture.width(), slot.texture.height()) != size {
-                let (texture, view) = view_texture(&self.gpu, size);
-                self.egui_renderer.update_egui_texture_from_wgpu_texture(
-                    &self.gpu.device,
-                    &view,
-                    wgpu::FilterMode::Nearest,
-                    slot.tex_id,
-                );
+                let (texture, view) = view_texture(&self.gpu, size, self.view_format);
+                if let Some(id) = slot.tex_id {
+                    self.egui_renderer.update_egui_texture_from_wgpu_texture(
+                        &self.gpu.device,
+                        &view,
+                        wgpu::FilterMode::Nearest,
+                        id,
+                    );
+                }
                 slot.texture = texture;
                 slot.view = view;
                 slot.shown = None;
@@ -667,7 +738,7 @@ impl Running {
                         want.spec.apply(&self.model.scene),
                         want.settings.clone(),
                     )?;
-                    let pass = renderer.new_resolve_pass(&self.gpu, VIEW_FORMAT)?;
+                    let pass = renderer.new_resolve_pass(&self.gpu, self.view_format)?;
                     slot.renderer = Some((renderer, pass));
                 }
             }
@@ -750,7 +821,7 @@ impl Running {
             has_timer: self.timer.is_some(),
             shader_dir: self.shader_dir.as_ref().map(|d| d.display().to_string()),
         };
-        let textures: Vec<egui::TextureId> = self.slots.iter().map(|s| s.tex_id).collect();
+        let textures: Vec<Option<egui::TextureId>> = self.slots.iter().map(|s| s.tex_id).collect();
         let raw = self.egui_state.take_egui_input(&self.window);
         let model = &mut self.model;
         let mut rects = Vec::new();
@@ -832,6 +903,11 @@ impl Running {
         if let Some(t) = &mut self.timer {
             t.resolve_end(&mut encoder);
         }
+        let placements = if self.direct {
+            self.placements(&rects, ppp)
+        } else {
+            Vec::new()
+        };
         let paint_jobs = self.egui_ctx.tessellate(full.shapes, ppp);
         let screen = egui_wgpu::ScreenDescriptor {
             size_in_pixels: [self.config.width, self.config.height],
@@ -848,7 +924,14 @@ impl Running {
         if let Some(t) = &mut self.timer {
             t.egui_begin(&mut encoder);
         }
-        self.draw_egui(&mut encoder, &target, &paint_jobs, &screen);
+        self.compose(
+            &mut encoder,
+            &surface_texture.texture,
+            &target,
+            &paint_jobs,
+            &screen,
+            &placements,
+        );
         if let Some(t) = &mut self.timer {
             t.egui_end(&mut encoder);
         }
@@ -868,11 +951,20 @@ impl Running {
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
                 format: self.config.format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::COPY_SRC
+                    | wgpu::TextureUsages::COPY_DST,
                 view_formats: &[],
             });
             let view = texture.create_view(&Default::default());
-            self.draw_egui(&mut encoder, &view, &paint_jobs, &screen);
+            self.compose(
+                &mut encoder,
+                &texture,
+                &view,
+                &paint_jobs,
+                &screen,
+                &placements,
+            );
             texture
         });
         if let Some(t) = &mut self.timer {
@@ -892,9 +984,14 @@ impl Running {
         if suboptimal {
             self.configure();
         }
+
         let _ = self.gpu.device.poll(wgpu::PollType::Poll);
         if let Some(t) = &mut self.timer {
-            t.collect();
+            if t.collect() && keep_times {
+                if let Some(times) = t.latest {
+                    self.pass_times.push(times);
+                }
+            }
             if !sampled && timed {
                 t.latest = None;
             }
@@ -934,13 +1031,120 @@ impl Running {
         Ok(false)
     }
 
-    fn draw_egui(
+    /// Where each shown view's texture goes in the window, in pixels: one
+    /// copy per view, two parts under a wipe, clipped to the surface.
+    fn placements(&self, rects: &[Rect], ppp: f32) -> Vec<Placement> {
+        let surface = (self.config.width, self.config.height);
+        let mut out = Vec::new();
+        let mut push = |slot: usize, src: (u32, u32), dst: (u32, u32), size: (u32, u32)| {
+            let w = size.0.min(surface.0.saturating_sub(dst.0));
+            let h = size.1.min(surface.1.saturating_sub(dst.1));
+            if w > 0 && h > 0 {
+                out.push(Placement {
+                    slot,
+                    src,
+                    dst,
+                    size: (w, h),
+                });
+            }
+        };
+        let origin = |r: &Rect| {
+            (
+                (r.min.x * ppp).round().max(0.0) as u32,
+                (r.min.y * ppp).round().max(0.0) as u32,
+            )
+        };
+        let tex_size = |i: usize| {
+            let t = &self.slots[i].texture;
+            (t.width(), t.height())
+        };
+        if self.model.layout == Layout::Wipe {
+            let Some(r) = rects.first() else {
+                return out;
+            };
+            let dst = origin(r);
+            let (w, h) = tex_size(0).min(tex_size(1));
+            let split = ((w as f32 * self.model.wipe).round() as u32).min(w);
+            push(0, (0, 0), dst, (split, h));
+            push(1, (split, 0), (dst.0 + split, dst.1), (w - split, h));
+        } else {
+            for (i, r) in rects.iter().enumerate().take(self.slots.len()) {
+                if self.slots[i].renderer.is_some() {
+                    push(i, (0, 0), origin(r), tex_size(i));
+                }
+            }
+        }
+        out
+    }
+
+    /// The window's content into `target`: the views (copied, when the
+    /// surface allows it) under egui's panel, labels and wipe line.
+    fn compose(
         &self,
         encoder: &mut wgpu::CommandEncoder,
+        target_texture: &wgpu::Texture,
         target: &wgpu::TextureView,
         paint_jobs: &[egui::ClippedPrimitive],
         screen: &egui_wgpu::ScreenDescriptor,
+        placements: &[Placement],
     ) {
+        let background = wgpu::Color {
+            r: 0.02,
+            g: 0.02,
+            b: 0.025,
+            a: 1.0,
+        };
+        let load = if self.direct {
+            // Clear, copy the views in, then draw egui over them.
+            drop(encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("clear window"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(background),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            }));
+            for p in placements {
+                encoder.copy_texture_to_texture(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &self.slots[p.slot].texture,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: p.src.0,
+                            y: p.src.1,
+                            z: 0,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::TexelCopyTextureInfo {
+                        texture: target_texture,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: p.dst.0,
+                            y: p.dst.1,
+                            z: 0,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::Extent3d {
+                        width: p.size.0,
+                        height: p.size.1,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            }
+            wgpu::LoadOp::Load
+        } else {
+            wgpu::LoadOp::Clear(background)
+        };
         let mut pass = encoder
             .begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("egui pass"),
@@ -949,12 +1153,7 @@ impl Running {
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 0.02,
-                            g: 0.02,
-                            b: 0.025,
-                            a: 1.0,
-                        }),
+                        load,
                         store: wgpu::StoreOp::Store,
                     },
                 })],
@@ -1012,7 +1211,7 @@ impl Running {
             self.gpu.queue.submit([encoder.finish()]);
             let label = self.model.views[i].label();
             let stem = format!("celray-{stamp}-view{}-{}", i + 1, screenshot::slug(&label));
-            let result = read_rgba8(&self.gpu, &slot.texture, VIEW_FORMAT)
+            let result = read_rgba8(&self.gpu, &slot.texture, self.view_format)
                 .map_err(|e| e.to_string())
                 .and_then(|rgba| {
                     screenshot::save_new_png(
@@ -1042,7 +1241,7 @@ fn views_ui(
     ui: &mut egui::Ui,
     area: Rect,
     model: &mut Model,
-    textures: &[egui::TextureId],
+    textures: &[Option<egui::TextureId>],
     samples: &[u32],
 ) -> Vec<Rect> {
     let ppp = ui.ctx().pixels_per_point();
@@ -1056,11 +1255,15 @@ fn views_ui(
     if model.layout == Layout::Wipe {
         let parts = layout::wipe_parts(rects[0], model.wipe);
         for (i, (rect, uv)) in parts.iter().enumerate() {
-            painter.image(textures[i], *rect, *uv, Color32::WHITE);
+            if let Some(id) = textures[i] {
+                painter.image(id, *rect, *uv, Color32::WHITE);
+            }
         }
     } else {
         for (i, rect) in rects.iter().enumerate() {
-            painter.image(textures[i], *rect, full_uv, Color32::WHITE);
+            if let Some(id) = textures[i] {
+                painter.image(id, *rect, full_uv, Color32::WHITE);
+            }
         }
     }
     let settings = settings_label(&model.settings);
