@@ -70,7 +70,17 @@ fn scratch(name: &str) -> PathBuf {
 
 /// Runs celray with a time limit (a hung window must not hang the suite).
 fn run_celray(args: &[&str], display: Option<&str>, cwd: &Path) -> Output {
+    run_celray_env(args, display, cwd, &[])
+}
+
+fn run_celray_env(
+    args: &[&str],
+    display: Option<&str>,
+    cwd: &Path,
+    env: &[(&str, &str)],
+) -> Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_celray"));
+    cmd.envs(env.iter().copied());
     cmd.args(args)
         .current_dir(cwd)
         .env_remove("WAYLAND_DISPLAY")
@@ -176,11 +186,13 @@ fn window_screenshot_shows_the_scene_and_the_panel() {
     assert!(red > 200, "no red ball: {red} red pixels");
 }
 
+/// Four views in a grid, drawn the second way the app can show views: as
+/// egui images (what it does where the surface cannot be copied into).
 #[test]
 fn four_views_in_a_grid_are_labelled() {
     let x = start_xvfb();
     let dir = scratch("grid");
-    let out = run_celray(
+    let out = run_celray_env(
         &[
             "view",
             "--views",
@@ -197,6 +209,7 @@ fn four_views_in_a_grid_are_labelled() {
         ],
         Some(&x.display),
         &dir,
+        &[("CELRAY_EGUI_VIEWS", "1")],
     );
     assert!(
         out.status.success(),

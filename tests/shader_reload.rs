@@ -78,7 +78,12 @@ fn a_broken_shader_is_an_error_naming_the_file() {
         Ok(_) => panic!("a broken raster.wgsl built a renderer"),
         Err(e) => e.to_string(),
     };
-    assert!(err.contains("raster.wgsl"), "{err}");
+    // The error points into raster.wgsl itself, at the broken line.
+    let broken_line = std::fs::read_to_string(&raster).unwrap().lines().count();
+    assert!(
+        err.contains(&format!("(raster.wgsl:{broken_line}:")),
+        "{err}"
+    );
     // The device is still usable, and the embedded shaders still work.
     let _ = gpu.take_errors();
     gpu.set_shader_overrides(None);

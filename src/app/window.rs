@@ -237,7 +237,9 @@ impl App {
         let size = window.inner_size();
         // Copying the views into the surface costs far less than drawing
         // them as egui images on a CPU driver; it needs COPY_DST.
-        let direct = caps.usages.contains(wgpu::TextureUsages::COPY_DST);
+        // CELRAY_EGUI_VIEWS=1 forces the egui path (tests cover both).
+        let direct = caps.usages.contains(wgpu::TextureUsages::COPY_DST)
+            && std::env::var_os("CELRAY_EGUI_VIEWS").is_none();
         let view_format = if direct { format } else { EGUI_VIEW_FORMAT };
         let config = wgpu::SurfaceConfiguration {
             usage: if direct {
