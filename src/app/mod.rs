@@ -34,7 +34,7 @@ pub const CONTROLS: &[(&str, &str)] = &[
         "wheel, middle drag, Ctrl + middle drag (Alt + Ctrl + left)",
     ),
     ("fly mode on / off", "Tab (or the navigation box)"),
-    ("fly: look", "hold right mouse button and move"),
+    ("fly: look", "hold the right mouse button and move"),
     ("fly: move", "W A S D, Q down, E up, Shift faster"),
     ("fly: speed", "wheel"),
     ("frame the whole scene", "F or Home"),
@@ -107,4 +107,24 @@ pub struct RunReport {
 /// Opens the window and runs until it is closed (or `exit_after_frames`).
 pub fn run(options: ViewOptions) -> Result<RunReport, AppError> {
     window::run(options)
+}
+
+#[cfg(test)]
+mod tests {
+    /// The controls table of docs/app.md lists exactly [`super::CONTROLS`].
+    #[test]
+    fn docs_list_the_controls() {
+        let doc = include_str!("../../docs/app.md").replace(['*', '`'], "");
+        for (action, input) in super::CONTROLS {
+            let row = format!("| {action} | {input} |");
+            assert!(doc.contains(&row), "docs/app.md lacks the row {row:?}");
+        }
+        let rows = doc
+            .lines()
+            .skip_while(|l| !l.starts_with("| action | input |"))
+            .skip(2)
+            .take_while(|l| l.starts_with('|'))
+            .count();
+        assert_eq!(rows, super::CONTROLS.len());
+    }
 }
