@@ -132,6 +132,41 @@ impl Renderer {
         Ok(())
     }
 
+    /// Replaces the scene and restarts accumulation. When only materials,
+    /// lights, camera, ambient or background differ from the current scene
+    /// (same shapes, instances and counts), those are written in place;
+    /// otherwise everything is uploaded again as in [`Renderer::set_scene`].
+    pub fn update_scene(&mut self, gpu: &Gpu, scene: Scene) -> Result<(), GpuError> {
+        let same_geometry = scene.shapes == self.scene.shapes
+            && scene.instances == self.scene.instances
+            && scene.materials.len() == self.scene.materials.len()
+            && scene.lights.len() == self.scene.lights.len();
+        if !same_geometry {
+            return self.set_scene(gpu, scene);
+        }
+        if !scene.materials.is_empty() {
+            let materials: Vec<_> = scene
+                .materials
+                .iter()
+                .map(scene_buffers::material_to_gpu)
+                .collect();
+            gpu.queue
+                .write_buffer(&self.buffers.materials, 0, bytemuck::cast_slice(&materials));
+        }
+        if !scene.lights.is_empty() {
+            let lights: Vec<_> = scene
+                .lights
+                .iter()
+                .map(scene_buffers::light_to_gpu)
+                .collect();
+            gpu.queue
+                .write_buffer(&self.buffers.lights, 0, bytemuck::cast_slice(&lights));
+        }
+        self.scene = scene;
+        self.reset();
+        Ok(())
+    }
+
     /// Changes the camera only (no upload) and restarts accumulation.
     pub fn set_camera(&mut self, camera: crate::scene::Camera) {
         self.scene.camera = camera;
@@ -197,6 +232,18 @@ impl Renderer {
     /// Renders one more sample into the accumulator (one dispatch per pass,
     /// one sample per pixel: see the loop limit in STACK-NOTES.md).
     pub fn render_sample(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
+        self.render_sample_timed(gpu, None)
+    }
+
+    /// [`Renderer::render_sample`], also writing GPU timestamps
+    /// `first`, `first + 1`, `first + 2` of `query_set` before the raster
+    /// pass, between it and the trace + accumulate passes, and after them (the device
+    /// needs `TIMESTAMP_QUERY_INSIDE_ENCODERS`).
+    pub fn render_sample_timed(
+        &mut self,
+        gpu: &Gpu,
+        timestamps: Option<(&wgpu::QuerySet, u32)>,
+    ) -> Result<(), GpuError> {
         let uniforms = self.frame_uniforms(self.samples);
         gpu.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
@@ -212,6 +259,12 @@ impl Renderer {
         ];
         let timer = self.timer.as_ref();
         let mode = self.settings.mode;
+        let stamp = |encoder: &mut wgpu::CommandEncoder, i: u32| {
+            if let Some((set, first)) = timestamps {
+                encoder.write_timestamp(set, first + i);
+            }
+        };
+        stamp(&mut encoder, 0);
         self.raster.encode(
             &mut encoder,
             &self.targets,
@@ -220,12 +273,14 @@ impl Renderer {
             mode,
             timer,
         );
+        stamp(&mut encoder, 1);
         let traced = mode != RenderMode::Raster;
         if traced {
             self.trace.encode(&mut encoder, &self.targets, timer);
         }
         self.accumulate
             .encode(&mut encoder, &self.targets, traced, timer);
+        stamp(&mut encoder, 2);
         if let Some(t) = timer {
             t.resolve(&mut encoder);
         }
@@ -285,6 +340,13 @@ impl Renderer {
         let mut pass = ResolvePass::new(gpu, format)?;
         pass.prepare(gpu, &self.settings, &self.targets);
         Ok(pass)
+    }
+
+    /// Binds `pass` (from [`Renderer::new_resolve_pass`]) to this renderer's
+    /// accumulator and settings again: needed after [`Renderer::set_settings`],
+    /// which may replace the accumulator and changes tone mapping.
+    pub fn prepare_resolve(&self, gpu: &Gpu, pass: &mut ResolvePass) {
+        pass.prepare(gpu, &self.settings, &self.targets);
     }
 
     /// The resolved image as sRGB-encoded RGBA8, row-major, top row first.
