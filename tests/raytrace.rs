@@ -492,6 +492,7 @@ fn deep_scene_has_no_truncated_pixels() {
         shape: 0,
         material: 0,
         world_from_object: Mat4::IDENTITY,
+        world_from_object_end: None,
     };
     for i in 0..10_000 {
         let (gx, gz) = ((i % 100) as f32, (i / 100) as f32);

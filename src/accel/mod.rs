@@ -142,9 +142,26 @@ impl SceneAccel {
                 )
             })
             .collect();
-        let world_bounds: Vec<Aabb> = instances
+        // A moving instance's box covers its whole motion over the shutter:
+        // the union of 16 steps, padded by 1% of its diagonal for the arcs a
+        // rotation sweeps between steps.
+        let world_bounds: Vec<Aabb> = instance_order
             .iter()
-            .map(|(m, _, s)| object_bounds[*s as usize].transformed(*m))
+            .map(|&i| {
+                let inst = &scene.instances[i];
+                let local = object_bounds[inst.shape];
+                if inst.world_from_object_end.is_none() {
+                    return local.transformed(inst.world_from_object);
+                }
+                let swept = (0..=16)
+                    .map(|k| local.transformed(inst.world_from_object_at(k as f32 / 16.0)))
+                    .fold(Aabb::EMPTY, Aabb::grow);
+                let pad = Vec3::splat((swept.max - swept.min).length() * 0.01);
+                Aabb {
+                    min: swept.min - pad,
+                    max: swept.max + pad,
+                }
+            })
             .collect();
         let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
         // One stack serves both levels, holding at most one entry per level

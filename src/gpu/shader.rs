@@ -26,6 +26,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         "lib/traverse.wgsl",
         include_str!("../../shaders/lib/traverse.wgsl"),
     ),
+    (
+        "lib/random.wgsl",
+        include_str!("../../shaders/lib/random.wgsl"),
+    ),
     ("raster.wgsl", include_str!("../../shaders/raster.wgsl")),
     (
         "accumulate.wgsl",

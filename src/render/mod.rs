@@ -22,7 +22,8 @@ use wgpu::util::DeviceExt;
 use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::FrameUniforms;
 use crate::gpu::{readback, Gpu, GpuError};
-use crate::sampling::pixel_offset;
+use crate::sampling::{sample, Aperture, Sample};
+use crate::scene::ApertureShape;
 use crate::scene::Scene;
 use accumulate::AccumulatePass;
 use raster::RasterPass;
@@ -184,19 +185,37 @@ impl Renderer {
         Ok(())
     }
 
-    /// The camera of sample `k`: view, jittered projection.
+    /// Sample k's sub-pixel offset, lens point and shutter time.
+    pub fn sample_schedule(&self, k: u32) -> Sample {
+        let s = &self.settings;
+        let aperture = match self.scene.camera.aperture {
+            ApertureShape::Disk => Aperture::Disk,
+            ApertureShape::Square => Aperture::Square,
+            ApertureShape::Polygon {
+                blades,
+                rotation_deg,
+            } => Aperture::Polygon {
+                blades,
+                rotation: rotation_deg.to_radians(),
+            },
+        };
+        sample(s.pattern, aperture, k, s.spp, s.seed)
+    }
+
+    /// The camera of sample `k`: at its shutter time, on its lens point, with
+    /// its jittered and sheared projection.
     pub fn sample_camera(&self, k: u32) -> camera::SampleCamera {
         let s = &self.settings;
-        let cam = &self.scene.camera;
-        let offset = pixel_offset(s.pattern, k, s.spp, s.seed);
-        let depth = camera::depth_range(cam, self.scene.bounds());
-        camera::sample_camera(cam, (s.width, s.height), offset, depth)
+        let smp = self.sample_schedule(k);
+        let cam = self.scene.camera.at(smp.time);
+        let depth = camera::depth_range(&cam, self.scene.bounds());
+        camera::sample_camera(&cam, (s.width, s.height), smp.pixel_offset, smp.lens, depth)
     }
 
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
-        let offset = pixel_offset(s.pattern, k, s.spp, s.seed);
+        let offset = self.sample_schedule(k).pixel_offset;
         let sc = self.sample_camera(k);
         let (lo, hi) = self.scene.bounds();
         let scene_radius = ((hi - lo).length() * 0.5).max(1e-3);
@@ -245,6 +264,15 @@ impl Renderer {
         timestamps: Option<(&wgpu::QuerySet, u32)>,
     ) -> Result<(), GpuError> {
         let uniforms = self.frame_uniforms(self.samples);
+        if self
+            .scene
+            .instances
+            .iter()
+            .any(|i| i.world_from_object_end.is_some())
+        {
+            let time = self.sample_schedule(self.samples).time;
+            self.buffers.write_instances_at(gpu, &self.scene, time);
+        }
         gpu.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
         let mut encoder = gpu
