@@ -9,6 +9,7 @@
 #include "lib/intersect.wgsl"
 #include "lib/traverse.wgsl"
 #include "lib/csg.wgsl"
+#include "lib/random.wgsl"
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
@@ -58,6 +59,36 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f
         }
     }
     return c;
+}
+
+// A glossy reflection direction: drawn from the Phong lobe around the mirror
+// direction w, p(dir) proportional to cos^e(angle to w), with exponent
+// e = 2 / roughness^2 - 2 (the usual roughness-to-Phong mapping), built in
+// the orthonormal frame (u, v, w). Roughness 0 is the mirror itself.
+// Directions below the surface are drawn again (up to 8 tries, then the
+// mirror direction): rejection keeps the lobe's shape without darkening.
+fn glossy_direction(w: vec3<f32>, n: vec3<f32>, roughness: f32, pixel_key: u32, bounce: u32) -> vec3<f32> {
+    if roughness <= 0.0 {
+        return w;
+    }
+    let a = max(roughness, 1e-3);
+    let e = 2.0 / (a * a) - 2.0;
+    let helper = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(w.x) > 0.9);
+    let u = normalize(cross(helper, w));
+    let v = cross(w, u);
+    let stream = hash_u32(frame.sample_index ^ hash_u32(frame.seed + bounce * 0x68e31da4u));
+    for (var attempt = 0u; attempt < 8u; attempt++) {
+        let u1 = uniform3(pixel_key, stream, 2u * attempt);
+        let u2 = uniform3(pixel_key, stream, 2u * attempt + 1u);
+        let cos_theta = pow(1.0 - u1, 1.0 / (e + 1.0));
+        let sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
+        let phi = 6.283185307 * u2;
+        let dir = u * (cos(phi) * sin_theta) + v * (sin(phi) * sin_theta) + w * cos_theta;
+        if dot(dir, n) > 0.0 {
+            return dir;
+        }
+    }
+    return w;
 }
 
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
@@ -125,7 +156,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         weight *= reflectivity;
         o = p + n * frame.ray_epsilon;
-        d = reflect(d, n);
+        d = glossy_direction(reflect(d, n), n, m.roughness, gid.y * frame.size_px.x + gid.x, bounce);
         hit = trace(o, d, 0.0, 3.0e38, false, false);
     }
 

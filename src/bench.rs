@@ -1,19 +1,25 @@
-//! `celray bench`: frame times of the raster path, on whatever adapter is
-//! chosen. Timings live here, never in tests.
+//! `celray bench`: frame times and ray throughput on whatever adapter is
+//! chosen, on the scenes other renderers were timed on
+//! (../shared/bench/anchor-scenes.md). Timings live here, never in tests.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use glam::{Mat4, Vec3};
 
+use celray::gpu::twins::GpuRay;
 use celray::gpu::Gpu;
-use celray::render::{RenderSettings, Renderer};
+use celray::render::ray_batch::RayBatch;
+use celray::render::{RenderMode, RenderSettings, Renderer};
 use celray::scene::{Instance, Scene};
 
-#[derive(Debug, clap::Args)]
+#[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
+    /// Which cases: raster, rays or all.
+    #[arg(default_value = "all")]
+    pub suite: String,
     /// Frames timed per case (after 3 warm-up frames).
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = 20)]
     pub frames: u32,
     /// Image width.
     #[arg(long, default_value_t = 1280)]
@@ -26,13 +32,26 @@ pub struct BenchArgs {
     pub models: PathBuf,
 }
 
-/// Milliseconds per frame: mean and median over `frames` frames, each one
-/// sample (raster + accumulate) plus a resolve, waited for.
-fn time_frames(gpu: &Gpu, scene: Scene, args: &BenchArgs) -> anyhow::Result<(f64, f64)> {
+/// Wall milliseconds per frame (mean, median) and mean GPU ms per pass.
+struct FrameStats {
+    mean: f64,
+    median: f64,
+    passes: Vec<(&'static str, f64)>,
+}
+
+/// Times `frames` frames, each one sample (all passes) plus a resolve into
+/// an 8-bit target, waited for: what a window waits per frame.
+fn time_frames(
+    gpu: &Gpu,
+    scene: Scene,
+    mode: RenderMode,
+    args: &BenchArgs,
+) -> anyhow::Result<FrameStats> {
     let settings = RenderSettings {
         width: args.width,
         height: args.height,
         spp: 1 << 20,
+        mode,
         ..RenderSettings::default()
     };
     let mut renderer = Renderer::new(gpu, scene, settings)?;
@@ -54,7 +73,7 @@ fn time_frames(gpu: &Gpu, scene: Scene, args: &BenchArgs) -> anyhow::Result<(f64
     let view = target.create_view(&Default::default());
     let timed = renderer.enable_pass_timing(gpu);
     let mut times = Vec::new();
-    let mut pass_ms: Vec<(&str, f64)> = Vec::new();
+    let mut passes: Vec<(&'static str, f64)> = Vec::new();
     for i in 0..args.frames + 3 {
         let start = Instant::now();
         renderer.render_sample(gpu)?;
@@ -62,34 +81,43 @@ fn time_frames(gpu: &Gpu, scene: Scene, args: &BenchArgs) -> anyhow::Result<(f64
         renderer.encode_resolve(&resolve, &mut encoder, &view);
         gpu.queue.submit([encoder.finish()]);
         gpu.wait_idle()?;
-        if i >= 3 {
-            times.push(start.elapsed().as_secs_f64() * 1e3);
-            if timed {
-                for (k, (name, ms)) in renderer.pass_times(gpu)?.into_iter().enumerate() {
-                    if pass_ms.len() <= k {
-                        pass_ms.push((name, 0.0));
-                    }
-                    pass_ms[k].1 += ms / f64::from(args.frames);
+        if i < 3 {
+            continue;
+        }
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+        if timed {
+            for (k, (name, ms)) in renderer.pass_times(gpu)?.into_iter().enumerate() {
+                if passes.len() <= k {
+                    passes.push((name, 0.0));
                 }
+                passes[k].1 += ms / f64::from(args.frames);
             }
         }
     }
-    let passes: Vec<String> = pass_ms
-        .iter()
-        .map(|(n, ms)| format!("{n} {ms:.1}"))
-        .collect();
-    log::warn!("GPU ms per pass: {}", passes.join(", "));
     let mean = times.iter().sum::<f64>() / times.len() as f64;
     times.sort_by(f64::total_cmp);
-    Ok((mean, times[times.len() / 2]))
+    Ok(FrameStats {
+        mean,
+        median: times[times.len() / 2],
+        passes,
+    })
 }
 
-/// FlightHelmet instanced `count` times on a square grid, camera framing all.
-fn helmet_grid(base: &Scene, count: usize) -> Scene {
+fn pass_ms(stats: &FrameStats, name: &str) -> f64 {
+    stats
+        .passes
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map_or(f64::NAN, |(_, ms)| *ms)
+}
+
+/// `base`'s first instance repeated on a square grid of `count`, camera
+/// framing all of it.
+fn grid(base: &Scene, count: usize, spacing_factor: f32) -> Scene {
     let mut scene = base.clone();
     let template = scene.instances[0].clone();
     let (lo, hi) = base.bounds();
-    let spacing = (hi - lo).max_element() * 1.2;
+    let spacing = (hi - lo).max_element() * spacing_factor;
     let side = (count as f32).sqrt().ceil() as usize;
     scene.instances = (0..count)
         .map(|i| {
@@ -104,59 +132,247 @@ fn helmet_grid(base: &Scene, count: usize) -> Scene {
     let centre = (lo + hi) * 0.5;
     let radius = (hi - lo).length() * 0.5;
     scene.camera.target = centre;
-    scene.camera.eye = centre + Vec3::new(0.6, 0.5, 1.0).normalize() * radius * 2.2;
+    scene.camera.eye = centre + Vec3::new(0.6, 0.8, 1.0).normalize() * radius * 1.9;
     scene
+}
+
+fn mesh_scene(path: &std::path::Path, camera: &str, args: &BenchArgs) -> anyhow::Result<Scene> {
+    let ron = format!(
+        r#"(version: 1,
+            camera: ({camera}, width: {w}, height: {h}),
+            lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: {{ "toon": (base_color: (0.7, 0.6, 0.5), model: Toon(bands: 4)) }},
+            shapes: {{ "mesh": Mesh(path: {path:?}) }},
+            instances: [(shape: "mesh", material: "toon")],
+        )"#,
+        w = args.width,
+        h = args.height,
+        path = path.display().to_string(),
+    );
+    Ok(Scene::from_ron_str(
+        &ron,
+        "bench",
+        std::path::Path::new("."),
+    )?)
+}
+
+fn triangles(scene: &Scene) -> usize {
+    scene
+        .instances
+        .iter()
+        .map(|i| match &scene.shapes[i.shape] {
+            celray::scene::Shape::Mesh(m) => m.triangle_count(),
+            other => celray::scene::tessellate(other).triangle_count(),
+        })
+        .sum()
+}
+
+fn raster_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Result<()> {
+    println!(
+        "\n## Raster and hybrid frames ({}x{}, ms per frame)\n",
+        args.width, args.height
+    );
+    println!("| case | mode | frame ms (mean) | median | GPU raster | GPU trace | GPU accumulate | triangles |");
+    println!("|---|---|---|---|---|---|---|---|");
+    let row = |name: &str, scene: Scene, mode: RenderMode| -> anyhow::Result<()> {
+        let tris = triangles(&scene);
+        let s = time_frames(gpu, scene, mode, args)?;
+        println!(
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {tris} |",
+            mode.name(),
+            s.mean,
+            s.median,
+            pass_ms(&s, "raster"),
+            pass_ms(&s, "trace"),
+            pass_ms(&s, "accumulate")
+        );
+        Ok(())
+    };
+    for mode in RenderMode::ALL {
+        row("default scene", Scene::builtin_default(), mode)?;
+    }
+    if let Some(helmet) = helmet {
+        row(
+            "FlightHelmet, anchor camera",
+            helmet.clone(),
+            RenderMode::Raster,
+        )?;
+        for n in [1, 10, 100] {
+            row(
+                &format!("FlightHelmet x{n}"),
+                grid(helmet, n, 1.2),
+                RenderMode::Raster,
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// Closest-hit throughput of the primary rays of `scene`'s camera (one ray
+/// per pixel centre, by the ray-batch kernel), and the trace pass's time in
+/// raytrace mode (primary ray plus a shadow ray per lit hit).
+fn ray_row(gpu: &Gpu, name: &str, scene: Scene, args: &BenchArgs) -> anyhow::Result<()> {
+    let (w, h) = (args.width, args.height);
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        spp: 1,
+        mode: RenderMode::Raytrace,
+        ..Default::default()
+    };
+    let build = Instant::now();
+    let mut renderer = Renderer::new(gpu, scene.clone(), settings)?;
+    let build_ms = build.elapsed().as_secs_f64() * 1e3;
+    let cam = renderer.sample_camera(0);
+    let rays: Vec<GpuRay> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let (o, d) = cam.pixel_ray((w, h), x, y);
+            GpuRay {
+                origin: o.extend(0.0).to_array(),
+                dir: d.extend(3e38).to_array(),
+            }
+        })
+        .collect();
+    let batch = RayBatch::new(gpu)?;
+    let buffers = renderer.scene_buffers();
+    batch.trace_timed(gpu, buffers, &rays)?; // warm-up
+    let mut best = f64::MAX;
+    let mut hits = 0;
+    for _ in 0..3 {
+        let (h, s) = batch.trace_timed(gpu, buffers, &rays)?;
+        hits = h.iter().filter(|h| h.instance != u32::MAX).count();
+        best = best.min(s);
+    }
+    let accel = &buffers.accel;
+    let bytes = accel.nodes.len() * 32
+        + accel.triangles.len() * 96
+        + accel.tlas_items.len() * 4
+        + scene.instances.len() * 208;
+    renderer.render_sample(gpu)?;
+    renderer.enable_pass_timing(gpu);
+    let mut trace_ms = f64::MAX;
+    for _ in 0..3 {
+        renderer.reset();
+        renderer.render_sample(gpu)?;
+        trace_ms = trace_ms.min(pass_ms(
+            &FrameStats {
+                mean: 0.0,
+                median: 0.0,
+                passes: renderer.pass_times(gpu)?,
+            },
+            "trace",
+        ));
+    }
+    let shadow_rays = hits; // one sun, one shadow ray per hit facing it (upper bound)
+    println!(
+        "| {name} | {} | {:.1}% | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+        scene.instances.len(),
+        100.0 * hits as f64 / rays.len() as f64,
+        rays.len() as f64 / best / 1e6,
+        trace_ms,
+        (rays.len() + shadow_rays) as f64 / (trace_ms * 1e-3) / 1e6,
+        build_ms,
+        bytes as f64 / (1024.0 * 1024.0),
+    );
+    Ok(())
+}
+
+fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Result<()> {
+    println!(
+        "\n## Ray throughput ({}x{}, one primary ray per pixel)\n",
+        args.width, args.height
+    );
+    println!("| scene | instances | rays hitting | closest-hit Mrays/s | trace pass ms (primary + shadow + shading) | primary+shadow Mrays/s | upload + BVH build ms | BVH + instance MiB |");
+    println!("|---|---|---|---|---|---|---|---|");
+    if let Some(helmet) = helmet {
+        ray_row(gpu, "FlightHelmet, anchor camera", helmet.clone(), args)?;
+    }
+    let spot_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets/models/spot/spot_triangulated.obj");
+    let spot = mesh_scene(
+        &spot_path,
+        "eye: (0.0, 1.0, 3.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0",
+        args,
+    )?;
+    ray_row(gpu, "spot x 10,000", grid(&spot, 10_000, 1.1), args)?;
+    let ball = |n: usize| -> anyhow::Result<Scene> {
+        let ron = format!(
+            r#"(version: 1,
+                camera: (eye: (0.0, 3.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: {w}, height: {h}),
+                lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+                materials: {{ "m": (base_color: (0.8, 0.3, 0.2), model: Toon(bands: 4)) }},
+                shapes: {{ "ball": Sphere(radius: 0.45) }},
+                instances: [(shape: "ball", material: "m")],
+            )"#,
+            w = args.width,
+            h = args.height
+        );
+        Ok(grid(
+            &Scene::from_ron_str(&ron, "bench", std::path::Path::new("."))?,
+            n,
+            1.1,
+        ))
+    };
+    ray_row(gpu, "100 analytic spheres", ball(100)?, args)?;
+
+    println!("\n## Instance scaling: n spheres on a grid filling the view, raytrace mode\n");
+    println!("| instances | trace pass ms | vs 1 instance | BVH + instance MiB |");
+    println!("|---|---|---|---|");
+    let mut first = None;
+    for n in [1usize, 10, 100, 1_000, 10_000, 100_000] {
+        let scene = ball(n)?;
+        let s = time_frames(
+            gpu,
+            scene.clone(),
+            RenderMode::Raytrace,
+            &BenchArgs {
+                frames: 5,
+                ..args.clone()
+            },
+        )?;
+        let trace = pass_ms(&s, "trace");
+        let base = *first.get_or_insert(trace);
+        let r = Renderer::new(
+            gpu,
+            scene,
+            RenderSettings {
+                width: 8,
+                height: 8,
+                ..Default::default()
+            },
+        )?;
+        let a = &r.scene_buffers().accel;
+        let bytes = a.nodes.len() * 32 + a.triangles.len() * 96 + a.tlas_items.len() * 4 + n * 208;
+        println!(
+            "| {n} | {trace:.1} | {:.2}x | {:.2} |",
+            trace / base,
+            bytes as f64 / (1024.0 * 1024.0)
+        );
+    }
+    Ok(())
 }
 
 pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     println!("adapter: {}", gpu.summary);
-    println!(
-        "{}x{}, {} frames per case; one frame = raster + outline/accumulate + resolve\n",
-        args.width, args.height, args.frames
-    );
-    println!(
-        "{:<40} {:>10} {:>10} {:>12}",
-        "case", "mean ms", "median ms", "triangles"
-    );
-    let report = |name: &str, scene: Scene| -> anyhow::Result<()> {
-        let tris: usize = scene
-            .instances
-            .iter()
-            .map(|i| match &scene.shapes[i.shape] {
-                celray::scene::Shape::Mesh(m) => m.triangle_count(),
-                other => celray::scene::tessellate(other).triangle_count(),
-            })
-            .sum();
-        let (mean, median) = time_frames(gpu, scene, args)?;
-        println!("{name:<40} {mean:>10.2} {median:>10.2} {tris:>12}");
-        Ok(())
-    };
-    report("default scene", Scene::builtin_default())?;
-
-    let helmet = args.models.join("FlightHelmet/FlightHelmet.gltf");
-    if !helmet.exists() {
+    let helmet_path = args.models.join("FlightHelmet/FlightHelmet.gltf");
+    let helmet = if helmet_path.exists() {
+        let camera = "eye: (0.60609, 0.74952, 1.58035), target: (-0.02035, 0.35799, 0.01424), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0";
+        Some(mesh_scene(&helmet_path, camera, args)?)
+    } else {
         println!(
-            "\nFlightHelmet not found at {}: skipping its cases (pass --models DIR, the folder of the shared test models)",
-            helmet.display()
+            "FlightHelmet not found at {}: its cases are skipped (pass --models DIR, the folder of the shared test models)",
+            helmet_path.display()
         );
-        return Ok(());
+        None
+    };
+    match args.suite.as_str() {
+        "raster" => raster_suite(gpu, args, helmet.as_ref()),
+        "rays" => rays_suite(gpu, args, helmet.as_ref()),
+        "all" => {
+            raster_suite(gpu, args, helmet.as_ref())?;
+            rays_suite(gpu, args, helmet.as_ref())
+        }
+        other => anyhow::bail!("bench suite {other:?}: expected raster, rays or all"),
     }
-    let ron = format!(
-        r#"(version: 1,
-            camera: (eye: (0.60609, 0.74952, 1.58035), target: (-0.02035, 0.35799, 0.01424), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: {w}, height: {h}),
-            lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
-            materials: {{ "toon": (base_color: (0.7, 0.6, 0.5), model: Toon(bands: 4)) }},
-            shapes: {{ "helmet": Mesh(path: {path:?}) }},
-            instances: [(shape: "helmet", material: "toon")],
-        )"#,
-        w = args.width,
-        h = args.height,
-        path = helmet.display().to_string(),
-    );
-    let base = Scene::from_ron_str(&ron, "bench-flighthelmet", std::path::Path::new("."))?;
-    report("FlightHelmet, anchor camera", base.clone())?;
-    for n in [1, 10, 100] {
-        report(&format!("FlightHelmet x{n}"), helmet_grid(&base, n))?;
-    }
-    Ok(())
 }

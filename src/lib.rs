@@ -6,7 +6,10 @@
 //! `capture` (headless images) and, behind the `app` feature, the window.
 
 pub mod accel;
+#[cfg(feature = "app")]
+pub mod app;
 pub mod capture;
+pub mod compare;
 pub mod gpu;
 pub mod render;
 pub mod sampling;

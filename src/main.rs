@@ -1,4 +1,5 @@
-//! The celray command line: headless rendering, adapter listing, benchmarks.
+//! The celray command line: the live app (default), headless rendering,
+//! shading comparison, adapter listing, benchmarks.
 
 mod bench;
 
@@ -24,14 +25,22 @@ struct Cli {
     /// adapter's name. Default: $CELRAY_ADAPTER, else auto.
     #[arg(long, global = true)]
     adapter: Option<String>,
+    /// Without a command: `view` on the built-in default scene.
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Subcommand)]
 enum Command {
+    /// Open the live app: a window with camera controls, a settings panel
+    /// and side-by-side views (the default command).
+    #[cfg(feature = "app")]
+    View(ViewArgs),
     /// Render a scene headless to a PNG (sRGB) or EXR (linear HDR) file.
     Render(RenderArgs),
+    /// Render a scene with several shading models (headless), write a
+    /// labelled contact sheet and print FLIP and PSNR for each pair.
+    Compare(CompareArgs),
     /// List every adapter wgpu can see, with backend, type and driver.
     Adapters,
     /// Time the raster path on the default scene and on FlightHelmet.
@@ -80,6 +89,104 @@ struct RenderArgs {
     quiet: bool,
 }
 
+/// Image settings shared by `compare` and `view`.
+#[derive(Args)]
+struct ImageArgs {
+    /// Samples per pixel to accumulate.
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Seed of the sample pattern: same seed, same image.
+    #[arg(long, default_value_t = 0)]
+    seed: u32,
+    /// Sub-pixel pattern: regular, random, jittered or halton.
+    #[arg(long, default_value = "jittered")]
+    pattern: String,
+    /// Tone mapping: clamp or reinhard.
+    #[arg(long, default_value = "clamp")]
+    tone_map: String,
+    /// Change one scene value, e.g. --set camera.fov_y_deg=30 (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
+}
+
+#[derive(Args)]
+struct CompareArgs {
+    /// Scene file (.ron). Without it, the built-in default scene.
+    scene: Option<PathBuf>,
+    /// Contact sheet to write (.png).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Comma-separated views: blinn-phong, toon, toon:N, or scene (the
+    /// scene's own materials).
+    #[arg(long, default_value = "blinn-phong,toon:4")]
+    views: String,
+    /// Width of each view in pixels (default: the scene camera's).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Height of each view in pixels (default: the scene camera's).
+    #[arg(long)]
+    height: Option<u32>,
+    #[command(flatten)]
+    image: ImageArgs,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+#[cfg(feature = "app")]
+#[derive(Args)]
+struct ViewArgs {
+    /// Scene file (.ron), watched for changes. Without it, the built-in
+    /// default scene.
+    scene: Option<PathBuf>,
+    /// Comma-separated views (at most 4): scene, blinn-phong, toon, toon:N.
+    #[arg(long, default_value = "scene")]
+    views: String,
+    /// single, split, wipe or grid (default: from the number of views).
+    #[arg(long)]
+    layout: Option<String>,
+    /// Window width in logical pixels.
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    /// Window height in logical pixels.
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// Sample target of the progressive display.
+    #[arg(long, default_value_t = 64)]
+    spp: u32,
+    /// Seed of the sample pattern.
+    #[arg(long, default_value_t = 0)]
+    seed: u32,
+    /// Sub-pixel pattern: regular, random, jittered or halton.
+    #[arg(long, default_value = "jittered")]
+    pattern: String,
+    /// Tone mapping: clamp or reinhard.
+    #[arg(long, default_value = "clamp")]
+    tone_map: String,
+    /// Change one scene value, e.g. --set camera.fov_y_deg=30 (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
+    /// Start with uncapped frames (vsync off).
+    #[arg(long)]
+    no_vsync: bool,
+    /// Render this many frames, then exit (for tests and benchmarks).
+    #[arg(long, value_name = "N")]
+    exit_after_frames: Option<u64>,
+    /// With --exit-after-frames: save the window's content (panel
+    /// included) to this PNG before exiting.
+    #[arg(long, value_name = "PATH", requires = "exit_after_frames")]
+    screenshot: Option<PathBuf>,
+    /// Print frame-time statistics at exit.
+    #[arg(long)]
+    report_frame_times: bool,
+    /// Folder for F12 and panel screenshots.
+    #[arg(long, default_value = ".")]
+    screenshot_dir: PathBuf,
+    /// Do not watch the scene file and shaders for changes.
+    #[arg(long)]
+    no_watch: bool,
+}
+
 fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let cli = Cli::parse();
@@ -96,7 +203,21 @@ fn adapter_choice(flag: &Option<String>) -> AdapterChoice {
 }
 
 fn run(cli: Cli) -> Result<()> {
-    match cli.command {
+    let Some(command) = cli.command else {
+        #[cfg(feature = "app")]
+        {
+            let Some(Command::View(args)) = Cli::try_parse_from(["celray", "view"])?.command else {
+                bail!("internal: no default view arguments");
+            };
+            return view(args, &adapter_choice(&cli.adapter));
+        }
+        #[cfg(not(feature = "app"))]
+        bail!("this build has no window (built without the `app` feature); try `celray render --help`");
+    };
+    match command {
+        #[cfg(feature = "app")]
+        Command::View(args) => view(args, &adapter_choice(&cli.adapter)),
+        Command::Compare(args) => compare(args, &adapter_choice(&cli.adapter)),
         Command::Adapters => {
             let adapters = celray::gpu::list_adapters();
             if adapters.is_empty() {
@@ -213,4 +334,192 @@ fn same_file(a: &Path, b: &Path) -> bool {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
     }
+}
+
+/// Applies `--set KEY=VALUE` edits to `scene`.
+fn apply_sets(scene: &mut Scene, sets: &[String]) -> Result<()> {
+    for set in sets {
+        let (key, value) = set
+            .split_once('=')
+            .with_context(|| format!("--set {set:?}: expected KEY=VALUE"))?;
+        scene.apply_override(key.trim(), value.trim())?;
+    }
+    Ok(())
+}
+
+/// Settings from the shared flags, at `width` x `height`.
+fn image_settings(
+    width: u32,
+    height: u32,
+    spp: u32,
+    seed: u32,
+    pattern: &str,
+    tone_map: &str,
+) -> Result<RenderSettings> {
+    if width == 0 || height == 0 {
+        bail!("image size {width}x{height} is empty: width and height must be at least 1");
+    }
+    if spp == 0 {
+        bail!("--spp 0: at least one sample per pixel is needed");
+    }
+    Ok(RenderSettings {
+        width,
+        height,
+        spp,
+        seed,
+        pattern: PixelPattern::parse(pattern).with_context(|| {
+            format!("--pattern {pattern:?}: expected regular, random, jittered or halton")
+        })?,
+        tone_map: ToneMap::parse(tone_map)
+            .with_context(|| format!("--tone-map {tone_map:?}: expected clamp or reinhard"))?,
+        ..RenderSettings::default()
+    })
+}
+
+fn compare(args: CompareArgs, adapter: &AdapterChoice) -> Result<()> {
+    use celray::compare::{Comparison, ViewSpec};
+    if OutputFormat::from_path(&args.output)? != OutputFormat::Png {
+        bail!(
+            "--output {}: the contact sheet is a .png file",
+            args.output.display()
+        );
+    }
+    if let Some(scene_path) = &args.scene {
+        if same_file(scene_path, &args.output) {
+            bail!(
+                "output {} is the scene file; refusing to overwrite an input",
+                args.output.display()
+            );
+        }
+    }
+    let views = ViewSpec::parse_list(&args.views)?;
+    let mut scene = load_scene(args.scene.as_deref())?;
+    apply_sets(&mut scene, &args.image.sets)?;
+    let i = &args.image;
+    let settings = image_settings(
+        args.width.unwrap_or(scene.camera.width),
+        args.height.unwrap_or(scene.camera.height),
+        i.spp,
+        i.seed,
+        &i.pattern,
+        &i.tone_map,
+    )?;
+    let gpu = Gpu::new_headless(adapter)?;
+    let comparison = Comparison::run(&gpu, &scene, &settings, views, |_, _, _| {})?;
+    comparison
+        .sheet()
+        .save_with_format(&args.output, image::ImageFormat::Png)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    if args.json {
+        let json = comparison.json(&args.output.display().to_string());
+        println!("{}", serde_json::to_string_pretty(&json)?);
+    } else {
+        print!("{}", comparison.text_report());
+        eprintln!(
+            "wrote {} ({} views of {}x{}, {})",
+            args.output.display(),
+            comparison.views.len(),
+            settings.width,
+            settings.height,
+            gpu.summary.name
+        );
+    }
+    Ok(())
+}
+
+#[cfg(feature = "app")]
+fn view(args: ViewArgs, adapter: &AdapterChoice) -> Result<()> {
+    use celray::app::{self, Layout, ViewOptions};
+    use celray::compare::ViewSpec;
+    let views = ViewSpec::parse_list(&args.views)?;
+    if views.len() > 4 {
+        bail!(
+            "--views {:?}: the window shows at most 4 views (use `celray compare` for more)",
+            args.views
+        );
+    }
+    let layout = match &args.layout {
+        Some(text) => Layout::parse(text)
+            .with_context(|| format!("--layout {text:?}: expected single, split, wipe or grid"))?,
+        None => Layout::for_count(views.len()),
+    };
+    if args.exit_after_frames == Some(0) {
+        bail!("--exit-after-frames 0: at least one frame is needed");
+    }
+    if let Some(path) = &args.screenshot {
+        if OutputFormat::from_path(path)? != OutputFormat::Png {
+            bail!(
+                "--screenshot {}: screenshots are .png files",
+                path.display()
+            );
+        }
+    }
+    if !args.screenshot_dir.is_dir() {
+        bail!(
+            "--screenshot-dir {}: no such folder",
+            args.screenshot_dir.display()
+        );
+    }
+    let mut scene = load_scene(args.scene.as_deref())?;
+    apply_sets(&mut scene, &args.sets)?;
+    let settings = image_settings(
+        scene.camera.width,
+        scene.camera.height,
+        args.spp,
+        args.seed,
+        &args.pattern,
+        &args.tone_map,
+    )?;
+    let report_times = args.report_frame_times;
+    let report = app::run(ViewOptions {
+        scene,
+        scene_path: args.scene.clone(),
+        views,
+        layout,
+        settings,
+        window_size: (args.width, args.height),
+        vsync: !args.no_vsync,
+        adapter: adapter.clone(),
+        exit_after_frames: args.exit_after_frames,
+        screenshot: args.screenshot.clone(),
+        report_frame_times: report_times,
+        screenshot_dir: args.screenshot_dir.clone(),
+        watch: !args.no_watch,
+    })?;
+    if report_times {
+        let warmup = 10.min(report.frame_ms.len() / 4);
+        match app::timing::summarize(&report.frame_ms, warmup) {
+            Some((mean, median, p95, max)) => println!(
+                "{} frames, {}x{} surface, {} view(s), adapter {}\n\
+                 frame time (first {warmup} skipped): mean {mean:.2} ms, median {median:.2} ms, \
+                 p95 {p95:.2} ms, max {max:.2} ms; {:.1} fps (from the mean)\n\
+                 samples accumulated per view: {:?}",
+                report.frames,
+                report.surface_size.0,
+                report.surface_size.1,
+                report.views,
+                report.adapter,
+                1000.0 / mean,
+                report.samples
+            ),
+            None => println!("{} frames: too few to time", report.frames),
+        }
+        if let Some(t) = app::timing::mean_pass_times(&report.pass_times) {
+            println!(
+                "GPU per frame (mean of {} timed frames, all views): raster {:.2} ms, \
+                 outline+accumulate {:.2} ms, resolve {:.2} ms, egui {:.2} ms",
+                report.pass_times.len(),
+                t.raster_ms,
+                t.accumulate_ms,
+                t.resolve_ms,
+                t.egui_ms
+            );
+        }
+    }
+    if let Some(path) = &args.screenshot {
+        if !args.report_frame_times {
+            eprintln!("wrote {}", path.display());
+        }
+    }
+    Ok(())
 }

@@ -93,6 +93,95 @@ pub fn pixel_offset(pattern: PixelPattern, k: u32, spp: u32, seed: u32) -> Vec2 
     }
 }
 
+/// What sample k of a frame uses, beyond its sub-pixel offset.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Sub-pixel position in [0, 1)^2 (0.5, 0.5 is the pixel centre).
+    pub pixel_offset: Vec2,
+    /// Point on the unit aperture (scaled by the aperture radius later).
+    pub lens: Vec2,
+    /// Fraction of the shutter interval in [0, 1).
+    pub time: f32,
+}
+
+/// The aperture's shape in unit coordinates (radius 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Aperture {
+    Disk,
+    Square,
+    /// A regular polygon with this many blades, turned by `rotation` radians.
+    Polygon {
+        blades: u32,
+        rotation: f32,
+    },
+}
+
+/// Sample k of `spp` for `seed`: every dimension is drawn from the same
+/// pattern, each with its own seed, so pixel offset, lens point and time are
+/// stratified (for jittered, Halton) and uncorrelated with each other.
+pub fn sample(pattern: PixelPattern, aperture: Aperture, k: u32, spp: u32, seed: u32) -> Sample {
+    let lens_square = pixel_offset(pattern, k, spp, seed ^ 0x5bd1_e995);
+    let time = match pattern {
+        PixelPattern::Regular => {
+            (k % spp.max(1)) as f32 / spp.max(1) as f32 + 0.5 / spp.max(1) as f32
+        }
+        PixelPattern::Random => uniform(k, seed, 7),
+        // Stratified in time: one random time in each 1/spp of the shutter,
+        // visited in a shuffled order.
+        PixelPattern::Jittered | PixelPattern::Halton => {
+            let n = spp.clamp(1, 1 << 24);
+            (shuffled_index(k % n, n, seed ^ 0x27d4_eb2d) as f32 + uniform(k, seed, 8)) / n as f32
+        }
+    };
+    Sample {
+        pixel_offset: pixel_offset(pattern, k, spp, seed),
+        lens: map_to_aperture(lens_square, aperture),
+        time,
+    }
+}
+
+/// Maps a uniform point of [0, 1)^2 to a uniform point of the aperture.
+pub fn map_to_aperture(u: Vec2, aperture: Aperture) -> Vec2 {
+    match aperture {
+        Aperture::Disk => concentric_disk(u),
+        Aperture::Square => u * 2.0 - Vec2::ONE,
+        Aperture::Polygon { blades, rotation } => {
+            // Pick a triangle (centre, corner i, corner i + 1) by u.x, then a
+            // uniform point in it (the square folded along its diagonal).
+            let n = blades.max(3);
+            let scaled = u.x * n as f32;
+            let i = (scaled as u32).min(n - 1);
+            let (mut a, mut b) = (scaled - i as f32, u.y);
+            if a + b > 1.0 {
+                (a, b) = (1.0 - a, 1.0 - b);
+            }
+            let corner = |j: u32| {
+                let phi = rotation + std::f32::consts::TAU * j as f32 / n as f32;
+                Vec2::new(phi.cos(), phi.sin())
+            };
+            corner(i) * a + corner(i + 1) * b
+        }
+    }
+}
+
+/// Shirley and Chiu's concentric map of the square to the unit disk: uniform
+/// and with low distortion, so stratification survives.
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let p = u * 2.0 - Vec2::ONE;
+    if p == Vec2::ZERO {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if p.x.abs() > p.y.abs() {
+        (p.x, std::f32::consts::FRAC_PI_4 * (p.y / p.x))
+    } else {
+        (
+            p.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (p.x / p.y),
+        )
+    };
+    Vec2::new(theta.cos(), theta.sin()) * r
+}
+
 /// A bijection of 0..n chosen by `seed` (cycle walking over a hashed
 /// power-of-two domain), used to order the strata of the jittered pattern.
 fn shuffled_index(i: u32, n: u32, seed: u32) -> u32 {
@@ -161,6 +250,51 @@ mod tests {
             .sum::<f32>()
             / 4096.0;
         assert!((m - 0.5).abs() < 0.02, "mean {m}");
+    }
+
+    #[test]
+    fn apertures_are_uniform_and_inside() {
+        // Mean of |p|^2 over a uniform unit disk is 1/2; over a regular
+        // hexagon of circumradius 1 it is 5/12 (polar moment / area).
+        // 4096 jittered samples: standard errors below 0.005; 0.02 is safe.
+        let mean_r2 = |aperture| {
+            (0..4096)
+                .map(|k| {
+                    sample(PixelPattern::Jittered, aperture, k, 4096, 9)
+                        .lens
+                        .length_squared()
+                })
+                .sum::<f32>()
+                / 4096.0
+        };
+        assert!((mean_r2(Aperture::Disk) - 0.5).abs() < 0.02);
+        assert!(
+            (mean_r2(Aperture::Polygon {
+                blades: 6,
+                rotation: 0.3
+            }) - 5.0 / 12.0)
+                .abs()
+                < 0.02
+        );
+        assert!((mean_r2(Aperture::Square) - 2.0 / 3.0).abs() < 0.02);
+        for k in 0..512 {
+            let p = sample(PixelPattern::Random, Aperture::Disk, k, 512, 1).lens;
+            assert!(p.length() <= 1.0 + 1e-6);
+        }
+    }
+
+    #[test]
+    fn times_are_stratified_over_the_shutter() {
+        let mut t: Vec<f32> = (0..64)
+            .map(|k| sample(PixelPattern::Jittered, Aperture::Disk, k, 64, 5).time)
+            .collect();
+        t.sort_by(f32::total_cmp);
+        for (i, v) in t.iter().enumerate() {
+            assert!(
+                *v >= i as f32 / 64.0 && *v < (i + 1) as f32 / 64.0,
+                "sample {i}: {v}"
+            );
+        }
     }
 
     #[test]

@@ -170,6 +170,7 @@ fn gpu_csg_matches_cpu_reference_on_random_trees_and_rays() {
                 Quat::from_euler(EulerRot::XYZ, r(1) * 6.3, r(2) * 6.3, r(3) * 6.3),
                 Vec3::new(r(4), r(5), r(6)) * 20.0 - Vec3::splat(10.0),
             ),
+            world_from_object_end: None,
         });
     }
     scene.validate().unwrap();

@@ -438,7 +438,7 @@ fn sizes_over_gpu_limits_fail_with_the_limit_named() {
     // Enough instances that their matrices overflow the storage-buffer
     // binding limit (128 MiB on lavapipe; computed from the device).
     let per_instance = std::mem::size_of::<celray::gpu::twins::GpuInstance>() as u64;
-    let count = gpu.device.limits().max_storage_buffer_binding_size as u64 / per_instance + 1;
+    let count = gpu.device.limits().max_storage_buffer_binding_size / per_instance + 1;
     let mut big = scene;
     let one = big.instances[0].clone();
     big.instances = vec![one; count as usize];
@@ -492,6 +492,7 @@ fn deep_scene_has_no_truncated_pixels() {
         shape: 0,
         material: 0,
         world_from_object: Mat4::IDENTITY,
+        world_from_object_end: None,
     };
     for i in 0..10_000 {
         let (gx, gz) = ((i % 100) as f32, (i / 100) as f32);

@@ -93,35 +93,32 @@ fn csg_push(p: u32, t: f32, n: vec3<f32>, m: u32) {
 // alternating entries and exits (an entry runs against the geometric
 // normal; a repeated entry or exit, the same crossing found twice on a
 // shared edge, is skipped).
-fn csg_mesh_leaf(p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>) {
+fn csg_mesh_leaf(p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) {
     var ts: array<f32, CSG_MESH_MAX_CROSSINGS>;
     var ns: array<vec3<f32>, CSG_MESH_MAX_CROSSINGS>;
     var entering: array<bool, CSG_MESH_MAX_CROSSINGS>;
     var count = 0u;
     let inv_d = 1.0 / d;
-    var stack: array<u32, TRAVERSAL_STACK>;
-    var sp = 1u;
-    stack[0] = leaf.blas_root;
-    while sp > 0u {
+    // The caller's traversal stack above `base`, as intersect_mesh does.
+    var sp = base;
+    var current = select(NO_HIT, leaf.blas_root, box_entry(leaf.blas_root, o, inv_d, -CSG_FAR, CSG_FAR) < 3.0e38);
+    loop {
+        if current == NO_HIT {
+            if sp == base {
+                break;
+            }
+            sp -= 1u;
+            current = (*stack)[sp];
+        }
         if !take_step() {
             return;
         }
-        sp -= 1u;
-        let node = nodes[stack[sp]];
-        let span = node_span(node, o, inv_d, -CSG_FAR, CSG_FAR);
-        if span.x > span.y {
-            continue;
-        }
+        let node = nodes[current];
         if node.count == 0u {
-            if sp + 2u > TRAVERSAL_STACK {
-                overflowed = true;
-                return;
-            }
-            stack[sp] = node.left_or_first + 1u;
-            stack[sp + 1u] = node.left_or_first;
-            sp += 2u;
+            current = descend(node, o, inv_d, -CSG_FAR, CSG_FAR, stack, &sp);
             continue;
         }
+        current = NO_HIT;
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
             let h = intersect_triangle(o, d, triangles[k], -CSG_FAR, CSG_FAR);
             if !h.hit {
@@ -158,12 +155,12 @@ fn csg_mesh_leaf(p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>) {
 }
 
 // The spans of the whole line inside a leaf, into slot p.
-fn csg_leaf(p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>) {
+fn csg_leaf(p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) {
     csg_len[p] = 0u;
     let lo = (leaf.leaf_from_csg * vec4<f32>(o, 1.0)).xyz;
     let ld = (leaf.leaf_from_csg * vec4<f32>(d, 0.0)).xyz;
     if leaf.kind == SHAPE_MESH {
-        csg_mesh_leaf(p, leaf, lo, ld);
+        csg_mesh_leaf(p, leaf, lo, ld, stack, base);
         return;
     }
     // Convex: the first boundary on the line is the entry, the next the exit.
@@ -233,7 +230,8 @@ fn csg_combine(op: u32, a: u32, b: u32, out: u32) {
 
 // The closest boundary of the CSG program at `start` in (t_min, t_max), in
 // CSG object space; sets object_material.
-fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+// Mesh leaves use the caller's traversal stack above `base`.
+fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
     for (var s = 0u; s < CSG_SLOTS; s++) {
         csg_slot[s] = s;
     }
@@ -253,7 +251,7 @@ fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32)
                 overflowed = true;
                 return no_hit();
             }
-            csg_leaf(csg_slot[sp], csg_leaves[op.arg], o, d);
+            csg_leaf(csg_slot[sp], csg_leaves[op.arg], o, d, stack, base);
         } else {
             if sp < 2u {
                 overflowed = true;

@@ -10,7 +10,7 @@
 
 const NO_HIT: u32 = 0xffffffffu;
 const MAX_TRAVERSAL_STEPS: u32 = 12000u;
-const TRAVERSAL_STACK: u32 = 48u;
+const TRAVERSAL_STACK: u32 = 64u;
 
 var<private> steps_left: u32;
 var<private> overflowed: bool;
@@ -46,47 +46,63 @@ fn node_span(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f
     return vec2<f32>(near, far);
 }
 
-fn child_entry(i: u32, o: vec3<f32>, inv_d: vec3<f32>) -> f32 {
-    let s = node_span(nodes[i], o, inv_d, 0.0, 3.0e38);
+fn box_entry(i: u32, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
+    let s = node_span(nodes[i], o, inv_d, t_min, t_max);
     return select(3.0e38, s.x, s.x <= s.y);
 }
 
-// Pushes both children, the nearer last so it is popped first.
-fn push_ordered(stack: ptr<function, array<u32, TRAVERSAL_STACK>>, sp: ptr<function, u32>, left: u32, o: vec3<f32>, inv_d: vec3<f32>) {
-    if *sp + 2u > TRAVERSAL_STACK {
-        overflowed = true;
-        return;
+// One step of descent from inner node `node`: tests both children's boxes
+// here (so a popped node needs no second test), continues into the nearer
+// child that is hit and pushes the farther one. Returns the next node, or
+// NO_HIT when neither child is hit (the caller pops).
+fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, sp: ptr<function, u32>) -> u32 {
+    let left = node.left_or_first;
+    let t_left = box_entry(left, o, inv_d, t_min, t_max);
+    let t_right = box_entry(left + 1u, o, inv_d, t_min, t_max);
+    let hit_left = t_left < 3.0e38;
+    let hit_right = t_right < 3.0e38;
+    if hit_left && hit_right {
+        if *sp >= TRAVERSAL_STACK {
+            overflowed = true;
+            return NO_HIT;
+        }
+        let near_left = t_left <= t_right;
+        (*stack)[*sp] = select(left, left + 1u, near_left);
+        *sp += 1u;
+        return select(left + 1u, left, near_left);
     }
-    if child_entry(left, o, inv_d) <= child_entry(left + 1u, o, inv_d) {
-        (*stack)[*sp] = left + 1u;
-        (*stack)[*sp + 1u] = left;
-    } else {
-        (*stack)[*sp] = left;
-        (*stack)[*sp + 1u] = left + 1u;
+    if hit_left {
+        return left;
     }
-    *sp += 2u;
+    if hit_right {
+        return left + 1u;
+    }
+    return NO_HIT;
 }
 
-// The closest triangle of a mesh's bottom-level BVH, in object space.
-fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+// The closest triangle of a mesh's bottom-level BVH, in object space. It
+// uses the caller's stack above `base` (one stack per ray: on CPU drivers a
+// private array costs in proportion to its size at every declaration).
+fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
     let inv_d = 1.0 / d;
     var best = no_hit();
     var t_best = t_max;
-    var stack: array<u32, TRAVERSAL_STACK>;
-    var sp = 1u;
-    stack[0] = root;
-    while sp > 0u {
+    var sp = base;
+    var current = select(NO_HIT, root, box_entry(root, o, inv_d, t_min, t_max) < 3.0e38);
+    loop {
+        if current == NO_HIT {
+            if sp == base {
+                break;
+            }
+            sp -= 1u;
+            current = (*stack)[sp];
+        }
         if !take_step() {
             break;
         }
-        sp -= 1u;
-        let node = nodes[stack[sp]];
-        let span = node_span(node, o, inv_d, t_min, t_best);
-        if span.x > span.y {
-            continue;
-        }
+        let node = nodes[current];
         if node.count == 0u {
-            push_ordered(&stack, &sp, node.left_or_first, o, inv_d);
+            current = descend(node, o, inv_d, t_min, t_best, stack, &sp);
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
@@ -96,18 +112,19 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32)
                 best = h;
             }
         }
+        current = NO_HIT;
     }
     return best;
 }
 
-fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
     let s = shapes[shape];
     object_material = CSG_NO_MATERIAL;
     if s.kind == SHAPE_CSG {
-        return intersect_csg(s.blas_root, o, d, t_min, t_max);
+        return intersect_csg(s.blas_root, o, d, t_min, t_max, stack, base);
     }
     if s.kind == SHAPE_MESH {
-        return intersect_mesh(s.blas_root, o, d, t_min, t_max);
+        return intersect_mesh(s.blas_root, o, d, t_min, t_max, stack, base);
     }
     return intersect_analytic(s.kind, s.params, o, d, t_min, t_max);
 }
@@ -123,20 +140,22 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     var object_geometric = vec3<f32>(0.0);
     let inv_d = 1.0 / d;
     var stack: array<u32, TRAVERSAL_STACK>;
-    var sp = 1u;
-    stack[0] = 0u;
-    while sp > 0u {
+    var sp = 0u;
+    var current = select(NO_HIT, 0u, box_entry(0u, o, inv_d, t_min, t_max) < 3.0e38);
+    loop {
+        if current == NO_HIT {
+            if sp == 0u {
+                break;
+            }
+            sp -= 1u;
+            current = stack[sp];
+        }
         if !take_step() {
             break;
         }
-        sp -= 1u;
-        let node = nodes[stack[sp]];
-        let span = node_span(node, o, inv_d, t_min, best.t);
-        if span.x > span.y {
-            continue;
-        }
+        let node = nodes[current];
         if node.count == 0u {
-            push_ordered(&stack, &sp, node.left_or_first, o, inv_d);
+            current = descend(node, o, inv_d, t_min, best.t, &stack, &sp);
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
@@ -146,7 +165,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
                 continue;
             }
             let m = instances[inst].object_from_world;
-            let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, best.t);
+            let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, best.t, &stack, sp);
             if h.hit {
                 best.t = h.t;
                 best.instance = inst;
@@ -158,6 +177,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
                 }
             }
         }
+        current = NO_HIT;
     }
     if best.instance != NO_HIT {
         let to_world = instances[best.instance].normal_from_object;

@@ -193,6 +193,7 @@ fn find_split(
         .iter()
         .fold(Aabb::EMPTY, |b, &i| b.grow_point(centres[i as usize]));
     let mut best: Option<(f32, usize, f32)> = None;
+    #[allow(clippy::needless_range_loop)] // axis indexes Vec3 components too
     for axis in 0..3 {
         let (lo, hi) = (cbox.min[axis], cbox.max[axis]);
         if hi - lo <= 1e-12 * hi.abs().max(1.0) {

@@ -194,8 +194,9 @@ impl CompiledCsg {
         let mut triangles = Vec::new();
         let mut ops = Vec::new();
         let mut leaves = Vec::new();
+        let mut depth = 0;
         compile(csg, &mut ops, &mut leaves, &mut |mesh| {
-            super::append_mesh_blas(mesh, "CSG leaf", &mut nodes, &mut triangles)
+            super::append_mesh_blas(mesh, "CSG leaf", &mut nodes, &mut triangles, &mut depth)
         })?;
         Ok(CompiledCsg {
             ops,

@@ -59,6 +59,7 @@ pub(crate) fn append_mesh_blas(
     name: &str,
     nodes: &mut Vec<BvhNode>,
     triangles: &mut Vec<GpuTriangle>,
+    max_depth: &mut u32,
 ) -> Result<u32, AccelError> {
     let tri_bounds: Vec<Aabb> = mesh
         .indices
@@ -70,11 +71,12 @@ pub(crate) fn append_mesh_blas(
         })
         .collect();
     let blas = bvh::build(&tri_bounds, MESH_LEAF);
-    if blas.depth + 2 > TRAVERSAL_STACK {
+    *max_depth = (*max_depth).max(blas.depth);
+    if blas.depth > TRAVERSAL_STACK / 2 {
         return Err(AccelError::TooDeep {
             shape: name.to_string(),
             depth: blas.depth,
-            limit: TRAVERSAL_STACK,
+            limit: TRAVERSAL_STACK / 2,
         });
     }
     let node_base = nodes.len() as u32;
@@ -126,6 +128,7 @@ impl SceneAccel {
         let mut object_bounds = Vec::new();
         let mut csg_ops = Vec::new();
         let mut csg_leaves = Vec::new();
+        let mut max_blas_depth = 0;
         for (id, shape) in scene.shapes.iter().enumerate() {
             let (kind, params) = shape_params(shape);
             let mut gpu_shape = GpuShape {
@@ -144,12 +147,13 @@ impl SceneAccel {
             });
             let name = scene.shape_names.get(id).cloned().unwrap_or_default();
             if let Shape::Mesh(mesh) = shape {
-                gpu_shape.blas_root = append_mesh_blas(mesh, &name, &mut nodes, &mut triangles)?;
+                gpu_shape.blas_root =
+                    append_mesh_blas(mesh, &name, &mut nodes, &mut triangles, &mut max_blas_depth)?;
             }
             if let Shape::Csg(tree) = shape {
                 gpu_shape.blas_root =
                     csg::compile(tree, &mut csg_ops, &mut csg_leaves, &mut |m| {
-                        append_mesh_blas(m, &name, &mut nodes, &mut triangles)
+                        append_mesh_blas(m, &name, &mut nodes, &mut triangles, &mut max_blas_depth)
                     })?;
             }
             shapes.push(gpu_shape);
@@ -166,15 +170,34 @@ impl SceneAccel {
                 )
             })
             .collect();
-        let world_bounds: Vec<Aabb> = instances
+        // A moving instance's box covers its whole motion over the shutter:
+        // the union of 16 steps, padded by 1% of its diagonal for the arcs a
+        // rotation sweeps between steps.
+        let world_bounds: Vec<Aabb> = instance_order
             .iter()
-            .map(|(m, _, s)| object_bounds[*s as usize].transformed(*m))
+            .map(|&i| {
+                let inst = &scene.instances[i];
+                let local = object_bounds[inst.shape];
+                if inst.world_from_object_end.is_none() {
+                    return local.transformed(inst.world_from_object);
+                }
+                let swept = (0..=16)
+                    .map(|k| local.transformed(inst.world_from_object_at(k as f32 / 16.0)))
+                    .fold(Aabb::EMPTY, Aabb::grow);
+                let pad = Vec3::splat((swept.max - swept.min).length() * 0.01);
+                Aabb {
+                    min: swept.min - pad,
+                    max: swept.max + pad,
+                }
+            })
             .collect();
         let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
-        if tlas.depth + 2 > TRAVERSAL_STACK {
+        // One stack serves both levels, holding at most one entry per level
+        // of the top-level path plus one per level of a mesh's path.
+        if tlas.depth + max_blas_depth > TRAVERSAL_STACK {
             return Err(AccelError::TooDeep {
-                shape: "(top level)".into(),
-                depth: tlas.depth,
+                shape: "(top level + deepest mesh)".into(),
+                depth: tlas.depth + max_blas_depth,
                 limit: TRAVERSAL_STACK,
             });
         }

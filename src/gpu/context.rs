@@ -2,6 +2,7 @@
 
 use std::sync::{Arc, Mutex};
 
+use crate::gpu::shader::ShaderOverrides;
 use crate::gpu::GpuError;
 
 /// Which adapter to use: `auto`, `software` or a substring of the adapter name.
@@ -77,6 +78,9 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     pub summary: AdapterSummary,
     uncaptured: Arc<Mutex<Vec<String>>>,
+    /// Shader files read from disk (hot reload), used instead of the
+    /// embedded ones by passes created from now on.
+    shader_overrides: Mutex<Option<Arc<ShaderOverrides>>>,
 }
 
 const INSTALL_HINT: &str = "no GPU adapter found. celray needs a Vulkan driver; \
@@ -111,8 +115,12 @@ fn backend_rank(b: wgpu::Backend) -> u32 {
     }
 }
 
-/// Picks an adapter from `adapters` by `choice`, or says why none fits.
-fn pick(adapters: Vec<wgpu::Adapter>, choice: &AdapterChoice) -> Result<wgpu::Adapter, GpuError> {
+/// Picks an adapter from `adapters` by `choice`, or says why none fits
+/// (the window code passes the adapters that can present to its surface).
+pub fn pick_adapter(
+    adapters: Vec<wgpu::Adapter>,
+    choice: &AdapterChoice,
+) -> Result<wgpu::Adapter, GpuError> {
     if adapters.is_empty() {
         return Err(GpuError::NoAdapter(INSTALL_HINT.to_string()));
     }
@@ -158,14 +166,15 @@ impl Gpu {
     pub fn new_headless(choice: &AdapterChoice) -> Result<Gpu, GpuError> {
         let instance = new_instance();
         let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
-        let adapter = pick(adapters, choice)?;
+        let adapter = pick_adapter(adapters, choice)?;
         Self::from_adapter(instance, adapter)
     }
 
     /// A device on a given adapter (the window code picks one that can present).
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
         let summary = AdapterSummary::from_info(&adapter.get_info());
-        let wanted = wgpu::Features::TIMESTAMP_QUERY;
+        let wanted =
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
         let required_features = adapter.features() & wanted;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("celray device"),
@@ -192,7 +201,21 @@ impl Gpu {
             queue,
             summary,
             uncaptured,
+            shader_overrides: Mutex::new(None),
         })
+    }
+
+    /// Makes passes created from now on use `overrides` (shader files read
+    /// from disk) instead of the embedded shaders; `None` goes back to them.
+    pub fn set_shader_overrides(&self, overrides: Option<ShaderOverrides>) {
+        if let Ok(mut slot) = self.shader_overrides.lock() {
+            *slot = overrides.map(Arc::new);
+        }
+    }
+
+    /// The shader files in use instead of the embedded ones, if any.
+    pub fn shader_overrides(&self) -> Option<Arc<ShaderOverrides>> {
+        self.shader_overrides.lock().ok().and_then(|s| s.clone())
     }
 
     /// Errors the uncaptured-error handler has seen since the last call.

@@ -7,7 +7,7 @@ pub mod shader;
 pub mod timer;
 pub mod twins;
 
-pub use context::{list_adapters, AdapterChoice, AdapterSummary, Gpu};
+pub use context::{list_adapters, pick_adapter, AdapterChoice, AdapterSummary, Gpu};
 
 /// What can go wrong on the GPU side.
 #[derive(Debug, thiserror::Error)]

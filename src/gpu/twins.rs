@@ -107,8 +107,9 @@ pub const SHAPE_CONE: u32 = 3;
 pub const SHAPE_QUAD: u32 = 4;
 pub const SHAPE_DISK: u32 = 5;
 pub const SHAPE_MESH: u32 = 6;
-/// Entries of the traversal stacks (both levels); deeper trees are refused.
-pub const TRAVERSAL_STACK: u32 = 48;
+/// Entries of the traversal stack, shared by both levels (the bottom level
+/// continues above the top level's entries); deeper trees are refused.
+pub const TRAVERSAL_STACK: u32 = 64;
 /// Loop iterations one ray query may take before it gives up and reports
 /// overflow: well under lavapipe's silent cut at ~65,535 per invocation.
 pub const MAX_TRAVERSAL_STEPS: u32 = 12000;

@@ -22,33 +22,54 @@ pub fn depth_range(camera: &Camera, bounds: (Vec3, Vec3)) -> (f32, f32) {
     (near, far)
 }
 
-/// The camera for a sample whose sub-pixel position is `offset` in [0, 1)^2
-/// (0.5, 0.5 is the pixel centre) on an image of `size` pixels.
+/// The camera for one sample on an image of `size` pixels: `camera` is
+/// already at the sample's shutter time; `offset` is the sub-pixel position
+/// in [0, 1)^2 (0.5, 0.5 is the pixel centre) and `lens` the point on the
+/// unit aperture.
 ///
-/// The rasterizer samples at pixel centres, so the image is shifted by
-/// (0.5 - offset) pixels: the point (x + offset) then lands on the centre.
+/// Anti-aliasing: the rasterizer samples at pixel centres, so the image is
+/// shifted by (0.5 - offset) pixels: the point (x + offset) then lands on
+/// the centre. Depth of field, by the accumulation-buffer method: the eye
+/// moves to `lens * aperture_radius` in the camera's right/up plane and the
+/// projection is sheared (an NDC shift of lens / (F tan(fov/2))) so that the
+/// plane at focus distance F projects where it did from the centre: it stays
+/// sharp while nearer and farther points spread over the circle of confusion.
+/// The trace pass unprojects through the same matrix, so its rays start on
+/// the lens and pass through the same focal-plane points.
 pub fn sample_camera(
     camera: &Camera,
     size: (u32, u32),
     offset: Vec2,
+    lens: Vec2,
     depth: (f32, f32),
 ) -> SampleCamera {
     let (w, h) = (size.0 as f32, size.1 as f32);
-    let view = glam::camera::rh::view::look_at_mat4(camera.eye, camera.target, camera.up);
+    let forward = (camera.target - camera.eye).normalize();
+    let right = forward.cross(camera.up).normalize();
+    let up = right.cross(forward);
+    let lens_world = lens * camera.aperture_radius;
+    let eye = camera.eye + right * lens_world.x + up * lens_world.y;
+    let view = glam::camera::rh::view::look_at_mat4(eye, eye + forward, camera.up);
+    let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
     let proj = glam::camera::rh::proj::directx::perspective(
         camera.fov_y_deg.to_radians(),
         w / h,
         depth.0,
         depth.1,
     );
+    let focus = camera.resolved_focus_distance();
     let shift_px = Vec2::splat(0.5) - offset;
     // Framebuffer x grows with NDC x, framebuffer y against NDC y.
-    let shift_ndc = Vec3::new(2.0 * shift_px.x / w, -2.0 * shift_px.y / h, 0.0);
+    let shift_ndc = Vec3::new(
+        2.0 * shift_px.x / w + lens_world.x / (focus * tan_half * (w / h)),
+        -2.0 * shift_px.y / h + lens_world.y / (focus * tan_half),
+        0.0,
+    );
     SampleCamera {
         view_from_world: view,
         clip_from_world: Mat4::from_translation(shift_ndc) * proj * view,
-        eye: camera.eye,
-        forward: (camera.target - camera.eye).normalize(),
+        eye,
+        forward,
     }
 }
 

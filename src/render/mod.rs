@@ -22,7 +22,8 @@ use wgpu::util::DeviceExt;
 use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::FrameUniforms;
 use crate::gpu::{readback, Gpu, GpuError};
-use crate::sampling::pixel_offset;
+use crate::sampling::{sample, Aperture, Sample};
+use crate::scene::ApertureShape;
 use crate::scene::Scene;
 use accumulate::AccumulatePass;
 use raster::RasterPass;
@@ -132,6 +133,41 @@ impl Renderer {
         Ok(())
     }
 
+    /// Replaces the scene and restarts accumulation. When only materials,
+    /// lights, camera, ambient or background differ from the current scene
+    /// (same shapes, instances and counts), those are written in place;
+    /// otherwise everything is uploaded again as in [`Renderer::set_scene`].
+    pub fn update_scene(&mut self, gpu: &Gpu, scene: Scene) -> Result<(), GpuError> {
+        let same_geometry = scene.shapes == self.scene.shapes
+            && scene.instances == self.scene.instances
+            && scene.materials.len() == self.scene.materials.len()
+            && scene.lights.len() == self.scene.lights.len();
+        if !same_geometry {
+            return self.set_scene(gpu, scene);
+        }
+        if !scene.materials.is_empty() {
+            let materials: Vec<_> = scene
+                .materials
+                .iter()
+                .map(scene_buffers::material_to_gpu)
+                .collect();
+            gpu.queue
+                .write_buffer(&self.buffers.materials, 0, bytemuck::cast_slice(&materials));
+        }
+        if !scene.lights.is_empty() {
+            let lights: Vec<_> = scene
+                .lights
+                .iter()
+                .map(scene_buffers::light_to_gpu)
+                .collect();
+            gpu.queue
+                .write_buffer(&self.buffers.lights, 0, bytemuck::cast_slice(&lights));
+        }
+        self.scene = scene;
+        self.reset();
+        Ok(())
+    }
+
     /// Changes the camera only (no upload) and restarts accumulation.
     pub fn set_camera(&mut self, camera: crate::scene::Camera) {
         self.scene.camera = camera;
@@ -149,19 +185,37 @@ impl Renderer {
         Ok(())
     }
 
-    /// The camera of sample `k`: view, jittered projection.
+    /// Sample k's sub-pixel offset, lens point and shutter time.
+    pub fn sample_schedule(&self, k: u32) -> Sample {
+        let s = &self.settings;
+        let aperture = match self.scene.camera.aperture {
+            ApertureShape::Disk => Aperture::Disk,
+            ApertureShape::Square => Aperture::Square,
+            ApertureShape::Polygon {
+                blades,
+                rotation_deg,
+            } => Aperture::Polygon {
+                blades,
+                rotation: rotation_deg.to_radians(),
+            },
+        };
+        sample(s.pattern, aperture, k, s.spp, s.seed)
+    }
+
+    /// The camera of sample `k`: at its shutter time, on its lens point, with
+    /// its jittered and sheared projection.
     pub fn sample_camera(&self, k: u32) -> camera::SampleCamera {
         let s = &self.settings;
-        let cam = &self.scene.camera;
-        let offset = pixel_offset(s.pattern, k, s.spp, s.seed);
-        let depth = camera::depth_range(cam, self.scene.bounds());
-        camera::sample_camera(cam, (s.width, s.height), offset, depth)
+        let smp = self.sample_schedule(k);
+        let cam = self.scene.camera.at(smp.time);
+        let depth = camera::depth_range(&cam, self.scene.bounds());
+        camera::sample_camera(&cam, (s.width, s.height), smp.pixel_offset, smp.lens, depth)
     }
 
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
-        let offset = pixel_offset(s.pattern, k, s.spp, s.seed);
+        let offset = self.sample_schedule(k).pixel_offset;
         let sc = self.sample_camera(k);
         let (lo, hi) = self.scene.bounds();
         let scene_radius = ((hi - lo).length() * 0.5).max(1e-3);
@@ -197,7 +251,28 @@ impl Renderer {
     /// Renders one more sample into the accumulator (one dispatch per pass,
     /// one sample per pixel: see the loop limit in STACK-NOTES.md).
     pub fn render_sample(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
+        self.render_sample_timed(gpu, None)
+    }
+
+    /// [`Renderer::render_sample`], also writing GPU timestamps
+    /// `first`, `first + 1`, `first + 2` of `query_set` before the raster
+    /// pass, between it and the trace + accumulate passes, and after them (the device
+    /// needs `TIMESTAMP_QUERY_INSIDE_ENCODERS`).
+    pub fn render_sample_timed(
+        &mut self,
+        gpu: &Gpu,
+        timestamps: Option<(&wgpu::QuerySet, u32)>,
+    ) -> Result<(), GpuError> {
         let uniforms = self.frame_uniforms(self.samples);
+        if self
+            .scene
+            .instances
+            .iter()
+            .any(|i| i.world_from_object_end.is_some())
+        {
+            let time = self.sample_schedule(self.samples).time;
+            self.buffers.write_instances_at(gpu, &self.scene, time);
+        }
         gpu.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
         let mut encoder = gpu
@@ -212,6 +287,12 @@ impl Renderer {
         ];
         let timer = self.timer.as_ref();
         let mode = self.settings.mode;
+        let stamp = |encoder: &mut wgpu::CommandEncoder, i: u32| {
+            if let Some((set, first)) = timestamps {
+                encoder.write_timestamp(set, first + i);
+            }
+        };
+        stamp(&mut encoder, 0);
         self.raster.encode(
             &mut encoder,
             &self.targets,
@@ -220,12 +301,14 @@ impl Renderer {
             mode,
             timer,
         );
+        stamp(&mut encoder, 1);
         let traced = mode != RenderMode::Raster;
         if traced {
             self.trace.encode(&mut encoder, &self.targets, timer);
         }
         self.accumulate
             .encode(&mut encoder, &self.targets, traced, timer);
+        stamp(&mut encoder, 2);
         if let Some(t) = timer {
             t.resolve(&mut encoder);
         }
@@ -285,6 +368,13 @@ impl Renderer {
         let mut pass = ResolvePass::new(gpu, format)?;
         pass.prepare(gpu, &self.settings, &self.targets);
         Ok(pass)
+    }
+
+    /// Binds `pass` (from [`Renderer::new_resolve_pass`]) to this renderer's
+    /// accumulator and settings again: needed after [`Renderer::set_settings`],
+    /// which may replace the accumulator and changes tone mapping.
+    pub fn prepare_resolve(&self, gpu: &Gpu, pass: &mut ResolvePass) {
+        pass.prepare(gpu, &self.settings, &self.targets);
     }
 
     /// The resolved image as sRGB-encoded RGBA8, row-major, top row first.

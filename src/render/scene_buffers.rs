@@ -158,11 +158,28 @@ fn storage_buffer<T: bytemuck::Pod>(gpu: &Gpu, label: &str, data: &[T]) -> wgpu:
 }
 
 impl SceneBuffers {
+    /// Rewrites every instance's matrices at shutter fraction `s` (for
+    /// motion blur; the top-level BVH already bounds the whole motion).
+    pub fn write_instances_at(&self, gpu: &Gpu, scene: &Scene, s: f32) {
+        let data: Vec<GpuInstance> = self
+            .instance_order
+            .iter()
+            .map(|&i| {
+                let inst = &scene.instances[i];
+                instance_to_gpu(inst.world_from_object_at(s), inst.material, inst.shape)
+            })
+            .collect();
+        if !data.is_empty() {
+            gpu.queue
+                .write_buffer(&self.instances, 0, bytemuck::cast_slice(&data));
+        }
+    }
+
     /// Uploads `scene`. Sizes over the adapter's limits are refused with a
     /// message naming the limit.
     pub fn upload(gpu: &Gpu, scene: &Scene) -> Result<SceneBuffers, GpuError> {
         let limits = gpu.device.limits();
-        let binding_limit = u64::from(limits.max_storage_buffer_binding_size);
+        let binding_limit = limits.max_storage_buffer_binding_size;
 
         // Instances sorted by base shape, then by culling: each (shape, cull)
         // group is one contiguous range, drawn by one instanced draw.

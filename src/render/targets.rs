@@ -76,8 +76,9 @@ impl Targets {
             }
         }
         let accum_bytes = u64::from(width) * u64::from(height) * 16;
-        let accum_limit =
-            u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+        let accum_limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
         if accum_bytes > accum_limit {
             return Err(GpuError::Limit {
                 what: format!("accumulation buffer for {width}x{height} (bytes)"),

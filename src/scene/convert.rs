@@ -148,6 +148,7 @@ fn convert(file: SceneFile, file_name: &str, meshes: &mut MeshLoader) -> Result<
             shape: lookup("shape", &shape_names, &instance.shape)?,
             material: lookup("material", &material_names, &instance.material)?,
             world_from_object: transform_matrix(&instance.transform),
+            world_from_object_end: instance.transform_end.as_ref().map(transform_matrix),
         });
     }
 
@@ -185,7 +186,12 @@ fn convert_camera(c: CameraFile) -> Camera {
         fov_y_deg: c.fov_y_deg,
         width: c.width,
         height: c.height,
-        aperture_radius: c.aperture_radius,
+        // A lens of focal length f at f-number N has an aperture of diameter
+        // f / N; scene units are metres.
+        aperture_radius: match (c.f_number, c.focal_length_mm) {
+            (Some(n), Some(f)) if n > 0.0 => f * 1e-3 / (2.0 * n),
+            _ => c.aperture_radius,
+        },
         focus_distance: c.focus_distance,
         aperture: match c.aperture {
             ApertureFile::Disk => ApertureShape::Disk,
@@ -200,6 +206,8 @@ fn convert_camera(c: CameraFile) -> Camera {
         },
         shutter_open_s: c.shutter_open_s,
         shutter_close_s: c.shutter_close_s,
+        eye_end: c.eye_end,
+        target_end: c.target_end,
     }
 }
 

@@ -96,6 +96,14 @@ pub(crate) struct CameraFile {
     pub shutter_open_s: f32,
     #[serde(default)]
     pub shutter_close_s: f32,
+    #[serde(default)]
+    pub f_number: Option<f32>,
+    #[serde(default)]
+    pub focal_length_mm: Option<f32>,
+    #[serde(default)]
+    pub eye_end: Option<Vec3>,
+    #[serde(default)]
+    pub target_end: Option<Vec3>,
 }
 
 #[derive(Deserialize, Default)]
@@ -271,6 +279,8 @@ pub(crate) struct InstanceFile {
     pub material: String,
     #[serde(default)]
     pub transform: TransformFile,
+    #[serde(default)]
+    pub transform_end: Option<TransformFile>,
 }
 
 /// An instance transform, written either as

@@ -150,6 +150,22 @@ pub struct Camera {
     pub shutter_open_s: f32,
     /// Shutter close time in seconds.
     pub shutter_close_s: f32,
+    /// Where the eye is when the shutter closes (a moving camera), if it moves.
+    pub eye_end: Option<Vec3>,
+    /// Where the camera looks when the shutter closes, if that moves.
+    pub target_end: Option<Vec3>,
+}
+
+impl Camera {
+    /// The camera at shutter fraction `s` in [0, 1]: eye and target move
+    /// linearly between their open and close positions.
+    pub fn at(&self, s: f32) -> Camera {
+        Camera {
+            eye: self.eye.lerp(self.eye_end.unwrap_or(self.eye), s),
+            target: self.target.lerp(self.target_end.unwrap_or(self.target), s),
+            ..self.clone()
+        }
+    }
 }
 
 /// Shape of the camera aperture.
@@ -191,8 +207,25 @@ pub struct Instance {
     pub shape: usize,
     /// Index into [`Scene::materials`].
     pub material: usize,
-    /// Object-to-world transform: affine and invertible.
+    /// Object-to-world transform: affine and invertible. With motion, the
+    /// transform when the shutter opens.
     pub world_from_object: Mat4,
+    /// The transform when the shutter closes, for motion blur; between the
+    /// two, scale and translation are interpolated linearly and rotation by
+    /// slerp (a shear in a matrix transform is not interpolated).
+    pub world_from_object_end: Option<Mat4>,
+}
+
+impl Instance {
+    /// The transform at shutter fraction `s` in [0, 1].
+    pub fn world_from_object_at(&self, s: f32) -> Mat4 {
+        let Some(end) = self.world_from_object_end else {
+            return self.world_from_object;
+        };
+        let (s0, r0, t0) = self.world_from_object.to_scale_rotation_translation();
+        let (s1, r1, t1) = end.to_scale_rotation_translation();
+        Mat4::from_scale_rotation_translation(s0.lerp(s1, s), r0.slerp(r1, s), t0.lerp(t1, s))
+    }
 }
 
 impl Camera {

@@ -81,27 +81,30 @@ impl Scene {
                     ),
                 ));
             }
-            let m = instance.world_from_object;
-            if !m.is_finite() {
-                return Err(SceneError::invalid(
-                    context,
-                    "transform has a non-finite entry (inf or NaN)",
-                ));
-            }
-            if m.row(3) != glam::Vec4::W {
-                return Err(SceneError::invalid(
-                    context,
-                    "transform is not affine: its last row must be (0, 0, 0, 1)",
-                ));
-            }
-            let det = m.determinant();
-            if det.abs() < MIN_TRANSFORM_DETERMINANT || !m.inverse().is_finite() {
-                return Err(SceneError::invalid(
+            for m in
+                std::iter::once(instance.world_from_object).chain(instance.world_from_object_end)
+            {
+                if !m.is_finite() {
+                    return Err(SceneError::invalid(
+                        context,
+                        "transform has a non-finite entry (inf or NaN)",
+                    ));
+                }
+                if m.row(3) != glam::Vec4::W {
+                    return Err(SceneError::invalid(
+                        context,
+                        "transform is not affine: its last row must be (0, 0, 0, 1)",
+                    ));
+                }
+                let det = m.determinant();
+                if det.abs() < MIN_TRANSFORM_DETERMINANT || !m.inverse().is_finite() {
+                    return Err(SceneError::invalid(
                     context,
                     format!(
                         "transform is singular (determinant {det:e}, |det| must be at least {MIN_TRANSFORM_DETERMINANT:e}); check for a zero scale"
                     ),
                 ));
+                }
             }
         }
         Ok(())

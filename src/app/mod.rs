@@ -1,0 +1,130 @@
+//! The live app: a winit window, an egui panel, camera controls and up to
+//! four views side by side, each drawn by its own [`crate::render::Renderer`]
+//! (the same renderer `celray render` uses), sharing one camera.
+//!
+//! Layers: this module imports render, winit and egui; nothing below it
+//! imports this module.
+
+pub mod controller;
+pub mod layout;
+pub mod model;
+pub mod panel;
+pub mod screenshot;
+pub mod timing;
+pub mod watch;
+mod window;
+
+use std::path::PathBuf;
+
+use crate::compare::ViewSpec;
+use crate::gpu::AdapterChoice;
+use crate::render::RenderSettings;
+use crate::scene::Scene;
+pub use layout::Layout;
+
+/// The controls, as shown in the panel and in docs/app.md.
+pub const CONTROLS: &[(&str, &str)] = &[
+    ("orbit", "left drag (Alt + left drag)"),
+    (
+        "pan",
+        "right drag, Shift + left drag, Shift + middle drag (Alt + Shift + left)",
+    ),
+    (
+        "zoom",
+        "wheel, middle drag, Ctrl + middle drag (Alt + Ctrl + left)",
+    ),
+    ("fly mode on / off", "Tab (or the navigation box)"),
+    ("fly: look", "hold the right mouse button and move"),
+    ("fly: move", "W A S D, Q down, E up, Shift faster"),
+    ("fly: speed", "wheel"),
+    ("frame the whole scene", "F or Home"),
+    (
+        "front / right / top view",
+        "numpad 1 / 3 / 7 (or 1 / 3 / 7)",
+    ),
+    ("back / left / bottom view", "Ctrl + numpad 1 / 3 / 7"),
+    ("screenshot of the window", "F12 (or the Screenshot button)"),
+    ("open a scene", "drop a .ron file on the window"),
+];
+
+/// How `celray view` was asked to run.
+pub struct ViewOptions {
+    pub scene: Scene,
+    /// The file `scene` came from (watched for changes); `None` for the
+    /// built-in scene.
+    pub scene_path: Option<PathBuf>,
+    /// Views given with `--views` (at most 4); the rest keep defaults.
+    pub views: Vec<ViewSpec>,
+    pub layout: Layout,
+    /// Shared render settings; width and height follow each view.
+    pub settings: RenderSettings,
+    /// Window inner size in logical pixels.
+    pub window_size: (u32, u32),
+    pub vsync: bool,
+    pub adapter: AdapterChoice,
+    /// Render this many frames, then exit.
+    pub exit_after_frames: Option<u64>,
+    /// With `exit_after_frames`: save the window content here at the end.
+    pub screenshot: Option<PathBuf>,
+    /// Print frame-time statistics at exit.
+    pub report_frame_times: bool,
+    /// Where F12 and the panel's buttons save screenshots.
+    pub screenshot_dir: PathBuf,
+    /// Watch the scene file and shaders for changes.
+    pub watch: bool,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum AppError {
+    #[error("cannot open a window: {0}. celray view needs a display (X11 or Wayland); for headless use try `celray render` or `celray compare`")]
+    EventLoop(String),
+    #[error("cannot create the window: {0}")]
+    Window(String),
+    #[error("cannot draw into the window: {0}")]
+    Surface(String),
+    #[error(transparent)]
+    Gpu(#[from] crate::gpu::GpuError),
+    #[error("cannot write the screenshot {path}: {reason}")]
+    Screenshot { path: String, reason: String },
+}
+
+/// What a run measured, for `--report-frame-times`.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    pub adapter: String,
+    pub frames: u64,
+    /// Interval between presented frames, in ms, in order.
+    pub frame_ms: Vec<f64>,
+    /// Physical size of the window's surface.
+    pub surface_size: (u32, u32),
+    pub views: usize,
+    pub samples: Vec<u32>,
+    /// GPU pass times of the frames that were timed (empty without
+    /// timestamp queries).
+    pub pass_times: Vec<timing::PassTimes>,
+}
+
+/// Opens the window and runs until it is closed (or `exit_after_frames`).
+pub fn run(options: ViewOptions) -> Result<RunReport, AppError> {
+    window::run(options)
+}
+
+#[cfg(test)]
+mod tests {
+    /// The controls table of docs/app.md lists exactly [`super::CONTROLS`].
+    #[test]
+    fn docs_list_the_controls() {
+        let doc = include_str!("../../docs/app.md").replace(['*', '`'], "");
+        for (action, input) in super::CONTROLS {
+            let row = format!("| {action} | {input} |");
+            assert!(doc.contains(&row), "docs/app.md lacks the row {row:?}");
+        }
+        let rows = doc
+            .lines()
+            .skip_while(|l| !l.starts_with("| action | input |"))
+            .skip(2)
+            .take_while(|l| l.starts_with('|'))
+            .count();
+        assert_eq!(rows, super::CONTROLS.len());
+    }
+}

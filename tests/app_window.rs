@@ -1,0 +1,271 @@
+//! The live app in a real window under Xvfb: `celray view
+//! --exit-after-frames N --screenshot PATH` must show the scene and the
+//! egui panel. The test starts its own Xvfb on a free display number
+//! (`-displayfd`); without Xvfb it fails and says how to install it.
+#![cfg(feature = "app")]
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// An Xvfb server, killed when dropped.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start_xvfb() -> Xvfb {
+    let mut child = Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "1600x1000x24",
+            "-nolisten",
+            "tcp",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap_or_else(|e| {
+            panic!(
+                "cannot start Xvfb ({e}): the window test needs an X server; \
+                 install it with `apt-get install -y xvfb xauth` (.ci/run does this)"
+            )
+        });
+    // Xvfb picks a free display number and writes it when it is ready.
+    let stdout = child.stdout.take().expect("piped stdout");
+    let mut line = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut line)
+        .expect("read Xvfb's display number");
+    let number = line.trim();
+    assert!(
+        !number.is_empty() && number.chars().all(|c| c.is_ascii_digit()),
+        "Xvfb did not report a display number (got {line:?})"
+    );
+    Xvfb {
+        display: format!(":{number}"),
+        child,
+    }
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("app")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs celray with a time limit (a hung window must not hang the suite).
+fn run_celray(args: &[&str], display: Option<&str>, cwd: &Path) -> Output {
+    run_celray_env(args, display, cwd, &[])
+}
+
+fn run_celray_env(
+    args: &[&str],
+    display: Option<&str>,
+    cwd: &Path,
+    env: &[(&str, &str)],
+) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_celray"));
+    cmd.envs(env.iter().copied());
+    cmd.args(args)
+        .current_dir(cwd)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("NODEVICE_SELECT", "1")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    match display {
+        Some(d) => cmd.env("DISPLAY", d),
+        None => cmd.env_remove("DISPLAY"),
+    };
+    if std::env::var_os("CELRAY_ADAPTER").is_none() {
+        cmd.env("CELRAY_ADAPTER", "software");
+    }
+    let mut child = cmd.spawn().expect("run celray");
+    let deadline = Instant::now() + Duration::from_secs(300);
+    loop {
+        if child.try_wait().expect("wait for celray").is_some() {
+            return child.wait_with_output().expect("celray output");
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let out = child.wait_with_output().expect("celray output");
+            panic!(
+                "celray view did not exit within 300 s:\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn luma(p: &image::Rgb<u8>) -> f32 {
+    0.2126 * f32::from(p[0]) + 0.7152 * f32::from(p[1]) + 0.0722 * f32::from(p[2])
+}
+
+#[test]
+fn window_screenshot_shows_the_scene_and_the_panel() {
+    let x = start_xvfb();
+    let dir = scratch("screenshot");
+    let out = run_celray(
+        &[
+            "view",
+            "--width",
+            "960",
+            "--height",
+            "540",
+            "--exit-after-frames",
+            "6",
+            "--screenshot",
+            "window.png",
+            "--no-watch",
+        ],
+        Some(&x.display),
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "celray view failed:\n{stderr}");
+    let img = image::open(dir.join("window.png"))
+        .expect("the screenshot was written")
+        .to_rgb8();
+    // Xvfb has a scale factor of 1: the window is the size asked for.
+    assert_eq!((img.width(), img.height()), (960, 540));
+
+    // The panel (egui's dark theme) on the left: mostly dark, with text.
+    let panel: Vec<&image::Rgb<u8>> = (0..540)
+        .flat_map(|y| (0..240).map(move |x| (x, y)))
+        .map(|(x, y)| img.get_pixel(x, y))
+        .collect();
+    let dark = panel.iter().filter(|p| luma(p) < 60.0).count();
+    let text = panel.iter().filter(|p| luma(p) > 140.0).count();
+    assert!(
+        dark > panel.len() * 6 / 10,
+        "panel not dark: {dark} of {}",
+        panel.len()
+    );
+    assert!(text > 500, "no panel text: {text} light pixels");
+
+    // The scene on the right: the sky colour at the top (background
+    // (0.6, 0.7, 0.85) linear is about (203, 218, 237) in sRGB), many
+    // colours, and the red ball.
+    let sky = img.get_pixel(900, 20).0;
+    let want = [203u8, 218, 237];
+    for c in 0..3 {
+        assert!(
+            (i32::from(sky[c]) - i32::from(want[c])).abs() <= 4,
+            "sky is {sky:?}, expected about {want:?}"
+        );
+    }
+    let scene: Vec<[u8; 3]> = (0..540)
+        .flat_map(|y| (400..960).map(move |x| (x, y)))
+        .map(|(x, y)| img.get_pixel(x, y).0)
+        .collect();
+    let distinct: std::collections::BTreeSet<[u8; 3]> = scene.iter().copied().collect();
+    assert!(
+        distinct.len() > 200,
+        "only {} colours in the view",
+        distinct.len()
+    );
+    let red = scene
+        .iter()
+        .filter(|p| p[0] > 150 && p[1] < 90 && p[2] < 90)
+        .count();
+    assert!(red > 200, "no red ball: {red} red pixels");
+}
+
+/// Four views in a grid, drawn the second way the app can show views: as
+/// egui images (what it does where the surface cannot be copied into).
+#[test]
+fn four_views_in_a_grid_are_labelled() {
+    let x = start_xvfb();
+    let dir = scratch("grid");
+    let out = run_celray_env(
+        &[
+            "view",
+            "--views",
+            "blinn-phong,toon:2,toon:4,scene",
+            "--width",
+            "960",
+            "--height",
+            "540",
+            "--exit-after-frames",
+            "3",
+            "--screenshot",
+            "grid.png",
+            "--no-watch",
+        ],
+        Some(&x.display),
+        &dir,
+        &[("CELRAY_EGUI_VIEWS", "1")],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = image::open(dir.join("grid.png")).unwrap().to_rgb8();
+    // Each quadrant of the view area shows sky at its top right corner and
+    // a dark label box at its top left.
+    let (x0, w, h) = (330u32, 960 - 330, 540u32);
+    for (qx, qy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        let left = x0 + qx * w / 2;
+        let top = qy * h / 2;
+        let sky = img.get_pixel(left + w / 2 - 12, top + 6).0;
+        assert!(
+            sky[2] > 200 && sky[0] > 170,
+            "quadrant ({qx}, {qy}) sky {sky:?}"
+        );
+        let label = img.get_pixel(left + 6, top + 12).0;
+        assert!(
+            label.iter().all(|&c| c < 110),
+            "quadrant ({qx}, {qy}) label {label:?}"
+        );
+    }
+}
+
+#[test]
+fn without_a_display_view_fails_with_a_message() {
+    let dir = scratch("no-display");
+    let out = run_celray(
+        &["view", "--exit-after-frames", "1", "--no-watch"],
+        None,
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("cannot open a window"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+#[test]
+fn bad_view_arguments_fail_before_opening_a_window() {
+    let dir = scratch("bad-args");
+    for (args, needle) in [
+        (vec!["view", "--views", "toon:4,nope"], "view 2"),
+        (
+            vec!["view", "--views", "toon,toon,toon,toon,toon"],
+            "at most 4",
+        ),
+        (vec!["view", "--layout", "diagonal"], "--layout"),
+        (vec!["view", "nothere.ron"], "nothere.ron"),
+    ] {
+        let out = run_celray(&args, None, &dir);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(stderr.contains(needle), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}

@@ -1,0 +1,360 @@
+//! Accumulation-buffer effects on lavapipe against closed forms:
+//! anti-aliased edge coverage, the thin-lens circle of confusion, motion
+//! streak length, and glossy blur growing with roughness.
+
+mod common;
+
+use celray::render::{RenderMode, RenderSettings};
+use celray::sampling::PixelPattern;
+use common::*;
+use glam::{DVec2, Vec2};
+
+/// Area of the unit pixel square [x, x+1] x [y, y+1] on the side of the line
+/// a*px + b*py + c >= 0, by clipping the square against the half-plane.
+fn covered_area(x: f64, y: f64, a: f64, b: f64, c: f64) -> f64 {
+    let square = [
+        DVec2::new(x, y),
+        DVec2::new(x + 1.0, y),
+        DVec2::new(x + 1.0, y + 1.0),
+        DVec2::new(x, y + 1.0),
+    ];
+    let f = |p: DVec2| a * p.x + b * p.y + c;
+    let mut poly = Vec::new();
+    for i in 0..4 {
+        let (p, q) = (square[i], square[(i + 1) % 4]);
+        let (fp, fq) = (f(p), f(q));
+        if fp >= 0.0 {
+            poly.push(p);
+        }
+        if (fp >= 0.0) != (fq >= 0.0) {
+            poly.push(p + (q - p) * (fp / (fp - fq)));
+        }
+    }
+    let n = poly.len();
+    (0..n)
+        .map(|i| poly[i].perp_dot(poly[(i + 1) % n]))
+        .sum::<f64>()
+        .abs()
+        * 0.5
+}
+
+/// Linear luminance (red channel) of pixel (x, y).
+fn lum(linear: &[f32], w: u32, x: u32, y: u32) -> f64 {
+    f64::from(linear[((y * w + x) * 4) as usize])
+}
+
+/// A white background and a black quad whose edge crosses the image at a
+/// slant: each pixel cut by the edge converges to its uncovered fraction.
+/// 256 jittered samples (16 x 16 strata): only the strata the edge cuts add
+/// variance, at most 2 x 16 of them with Bernoulli variance <= 1/4 each and
+/// weight 1/256, so the standard deviation is at most sqrt(32/4)/256 = 0.011;
+/// the tolerance 0.045 is four of those.
+#[test]
+fn edge_pixels_converge_to_their_covered_fraction() {
+    let gpu = gpu();
+    let ron = r#"(version: 1,
+        camera: (eye: (0.0, 0.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 64, height: 64),
+        ambient: (0.0, 0.0, 0.0), background: (1.0, 1.0, 1.0),
+        lights: [],
+        materials: { "black": (base_color: (0.0, 0.0, 0.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong) },
+        shapes: { "card": Plane(Quad(half_size: (1.0, 1.0))) },
+        instances: [(shape: "card", material: "black", transform: (translate: (-0.75, 0.0, 0.0), rotate_deg: (90.0, 0.0, 20.0)))],
+    )"#;
+    let scene = scene(ron);
+    let (w, h) = (64u32, 64u32);
+    for mode in [RenderMode::Raster, RenderMode::Hybrid] {
+        let settings = RenderSettings {
+            mode,
+            spp: 256,
+            pattern: PixelPattern::Jittered,
+            ..pixel_centre_settings(&scene)
+        };
+        let r = rendered(&gpu, scene.clone(), settings);
+        let linear = r.read_linear(&gpu).unwrap();
+        // The card's right edge in the image: project two points of it with
+        // the unjittered camera (sample offset at the pixel centre).
+        let m = scene.instances[0].world_from_object;
+        let cam = celray::render::camera::sample_camera(
+            &scene.camera,
+            (w, h),
+            Vec2::splat(0.5),
+            Vec2::ZERO,
+            celray::render::camera::depth_range(&scene.camera, scene.bounds()),
+        );
+        let to_px = |p: glam::Vec3| {
+            let c = cam.clip_from_world * m.transform_point3(p).extend(1.0);
+            DVec2::new(
+                (f64::from(c.x / c.w) + 1.0) * 32.0,
+                (1.0 - f64::from(c.y / c.w)) * 32.0,
+            )
+        };
+        let (p, q) = (
+            to_px(glam::Vec3::new(1.0, 0.0, -1.0)),
+            to_px(glam::Vec3::new(1.0, 0.0, 1.0)),
+        );
+        // Line through p and q; the side away from the card's centre is white.
+        let centre = to_px(glam::Vec3::ZERO);
+        let (mut a, mut b) = (q.y - p.y, p.x - q.x);
+        let mut c = -(a * p.x + b * p.y);
+        if a * centre.x + b * centre.y + c > 0.0 {
+            (a, b, c) = (-a, -b, -c);
+        }
+        let mut checked = 0;
+        // Rows well inside the edge segment, away from the card's other edges.
+        let (y0, y1) = (p.y.min(q.y) + 3.0, p.y.max(q.y) - 3.0);
+        for y in (y0.max(1.0) as u32)..(y1.min(f64::from(h) - 1.0) as u32) {
+            for x in 4..w - 4 {
+                let white = covered_area(f64::from(x), f64::from(y), a, b, c);
+                if white > 0.05 && white < 0.95 {
+                    let got = lum(&linear, w, x, y);
+                    assert!(
+                        (got - white).abs() < 0.045,
+                        "{mode:?} pixel ({x},{y}): {got:.3}, covered {white:.3}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 20, "{mode:?}: only {checked} edge pixels");
+    }
+}
+
+/// Intensity-weighted centroid and mean squared distance from it.
+fn moments(linear: &[f32], w: u32, h: u32, region: (u32, u32, u32, u32)) -> (DVec2, f64) {
+    let (mut sum, mut c) = (0.0, DVec2::ZERO);
+    for y in region.1..region.3.min(h) {
+        for x in region.0..region.2.min(w) {
+            let v = lum(linear, w, x, y);
+            sum += v;
+            c += DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5) * v;
+        }
+    }
+    c /= sum;
+    let mut m2 = 0.0;
+    for y in region.1..region.3.min(h) {
+        for x in region.0..region.2.min(w) {
+            m2 += lum(linear, w, x, y)
+                * (DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5) - c).length_squared();
+        }
+    }
+    (c, m2 / sum)
+}
+
+/// Thin lens: a point at depth d seen through an aperture of radius R focused
+/// at F spreads into a disk of radius R |1/F - 1/d| / tan(fov/2) * H/2 pixels
+/// (the sheared projection moves it by that much per unit of lens offset).
+/// A uniform disk of radius r blurred over a small sphere image of radius s
+/// has mean squared radius (r^2 + s^2) / 2, which gives r from the image.
+/// Tolerance 1 px. A sphere on the focal plane stays sharp (r ~ 0).
+#[test]
+fn defocused_sphere_spreads_into_the_circle_of_confusion() {
+    let gpu = gpu();
+    let ron = r#"(version: 1,
+        camera: (eye: (0.0, 0.0, 0.0), target: (0.0, 0.0, -1.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 240, height: 160,
+                 aperture_radius: 0.15, focus_distance: 8.0),
+        ambient: (1.0, 1.0, 1.0), background: (0.0, 0.0, 0.0),
+        lights: [],
+        materials: { "glow": (base_color: (1.0, 1.0, 1.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong) },
+        shapes: { "dot": Sphere(radius: 0.03) },
+        instances: [
+            (shape: "dot", material: "glow", transform: (translate: (-0.8, 0.0, -4.0))),
+            (shape: "dot", material: "glow", transform: (translate: (2.4, 0.0, -8.0), scale: (2.0, 2.0, 2.0))),
+        ],
+    )"#;
+    let scene = scene(ron);
+    let (w, h) = (240u32, 160u32);
+    let tan_half = (15.0f64).to_radians().tan();
+    let px = |world_radius: f64, depth: f64| world_radius / depth / tan_half * f64::from(h) / 2.0;
+    for mode in [RenderMode::Raster, RenderMode::Hybrid] {
+        let settings = RenderSettings {
+            mode,
+            spp: 256,
+            ..pixel_centre_settings(&scene)
+        };
+        let r = rendered(&gpu, scene.clone(), settings);
+        let linear = r.read_linear(&gpu).unwrap();
+        // Near sphere (d = 4) in the left half, focused sphere (d = 8) right.
+        let (_, m2_near) = moments(&linear, w, h, (0, 0, w / 2, h));
+        let s_near = px(0.03, 4.0);
+        let r_expected = 0.15 * (1.0 / 8.0 - 1.0 / 4.0f64).abs() / tan_half * f64::from(h) / 2.0;
+        let r_measured = (2.0 * m2_near - s_near * s_near).max(0.0).sqrt();
+        assert!(
+            (r_measured - r_expected).abs() <= 1.0,
+            "{mode:?}: circle of confusion {r_measured:.2} px, thin lens says {r_expected:.2}"
+        );
+        let (_, m2_far) = moments(&linear, w, h, (w / 2, 0, w, h));
+        let s_far = px(0.06, 8.0);
+        let r_far = (2.0 * m2_far - s_far * s_far).max(0.0).sqrt();
+        assert!(
+            r_far <= 1.0,
+            "{mode:?}: the sphere on the focal plane blurs by {r_far:.2} px"
+        );
+    }
+}
+
+/// A sphere moving 1 unit across the view over the shutter, 5 units away:
+/// its centre travels L = 1 / 5 / tan(15 deg) * H/2 pixels. Along its path the
+/// streak's profile rises over one sphere diameter at each end and is flat
+/// between, so the half-maximum points are exactly L apart (tolerance 1 px),
+/// and the middle third is flat. A still sphere keeps a sharp edge.
+#[test]
+fn moving_sphere_leaves_a_streak_of_its_projected_length() {
+    let gpu = gpu();
+    let ron = r#"(version: 1,
+        camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 240, height: 160,
+                 shutter_open_s: 0.0, shutter_close_s: 0.02),
+        ambient: (1.0, 1.0, 1.0), background: (0.0, 0.0, 0.0),
+        lights: [],
+        materials: { "glow": (base_color: (1.0, 1.0, 1.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong) },
+        shapes: { "ball": Sphere(radius: 0.1) },
+        instances: [
+            (shape: "ball", material: "glow", transform: (translate: (-0.8, 0.3, 0.0)), transform_end: (translate: (0.2, 0.3, 0.0))),
+            (shape: "ball", material: "glow", transform: (translate: (0.8, -0.5, 0.0))),
+        ],
+    )"#;
+    let scene = scene(ron);
+    let (w, h) = (240u32, 160u32);
+    let tan_half = (15.0f64).to_radians().tan();
+    let streak = 1.0 / 5.0 / tan_half * f64::from(h) / 2.0;
+    for mode in [RenderMode::Raster, RenderMode::Hybrid] {
+        let settings = RenderSettings {
+            mode,
+            spp: 256,
+            ..pixel_centre_settings(&scene)
+        };
+        let r = rendered(&gpu, scene.clone(), settings);
+        let linear = r.read_linear(&gpu).unwrap();
+        // The moving sphere's row: y of its centre, projected.
+        let row = (f64::from(h) / 2.0 - 0.3 / 5.0 / tan_half * f64::from(h) / 2.0) as u32;
+        let profile: Vec<f64> = (0..w).map(|x| lum(&linear, w, x, row)).collect();
+        let peak = profile[..w as usize / 2 + 20]
+            .iter()
+            .cloned()
+            .fold(0.0, f64::max);
+        let half = peak / 2.0;
+        let crossing = |range: Box<dyn Iterator<Item = usize>>| {
+            let mut prev: Option<usize> = None;
+            for x in range {
+                if let Some(p) = prev {
+                    let (a, b) = (profile[p], profile[x]);
+                    if (a < half) != (b < half) {
+                        // Linear interpolation between the pixel centres.
+                        return p as f64 + 0.5 + (x as f64 - p as f64) * (half - a) / (b - a);
+                    }
+                }
+                prev = Some(x);
+            }
+            f64::NAN
+        };
+        let left = crossing(Box::new(0..w as usize));
+        let right = crossing(Box::new((0..w as usize / 2 + 30).rev()));
+        assert!(
+            ((right - left) - streak).abs() <= 1.0,
+            "{mode:?}: streak {:.2} px between half-maximum points, projection says {streak:.2}",
+            right - left
+        );
+        // Flat middle: the middle third of the streak within 0.05 of its mean
+        // (each pixel there is covered for the same fraction of the shutter;
+        // 256 stratified times leave an error well under 0.02).
+        let third = ((right - left) / 3.0) as usize;
+        let mid: Vec<f64> = profile[left as usize + third..right as usize - third].to_vec();
+        let mean = mid.iter().sum::<f64>() / mid.len() as f64;
+        assert!(
+            mid.iter().all(|v| (v - mean).abs() < 0.05),
+            "{mode:?}: streak middle not flat: {mid:?}"
+        );
+        // The still sphere: its edge rises from 10% to 90% within 2 px.
+        let still_row = (f64::from(h) / 2.0 + 0.5 / 5.0 / tan_half * f64::from(h) / 2.0) as u32;
+        let still: Vec<f64> = (w / 2..w).map(|x| lum(&linear, w, x, still_row)).collect();
+        let first_10 = still.iter().position(|&v| v > 0.1).unwrap();
+        let first_90 = still.iter().position(|&v| v > 0.9).unwrap();
+        assert!(
+            first_90 - first_10 <= 2,
+            "{mode:?}: still sphere edge spans {} px",
+            first_90 - first_10
+        );
+    }
+}
+
+/// A glossy floor reflecting a black/white wall edge: the reflected edge's
+/// 10-90% width grows with roughness, and roughness 0 is a mirror (its
+/// reflected edge is as sharp as anti-aliasing allows).
+#[test]
+fn glossy_blur_grows_with_roughness() {
+    let gpu = gpu();
+    let widths: Vec<f64> = [0.0, 0.1, 0.3]
+        .iter()
+        .map(|roughness| {
+            let ron = format!(
+                r#"(version: 1,
+                    camera: (eye: (0.0, 0.6, 4.0), target: (0.0, 0.2, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 160, height: 120),
+                    ambient: (1.0, 1.0, 1.0), background: (0.0, 0.0, 0.0),
+                    lights: [],
+                    materials: {{
+                        "floor": (base_color: (0.0, 0.0, 0.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong, reflectivity: 1.0, roughness: {roughness}),
+                        "white": (base_color: (1.0, 1.0, 1.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong),
+                    }},
+                    shapes: {{ "floor": Plane(Quad(half_size: (20.0, 20.0))), "panel": Plane(Quad(half_size: (2.0, 1.0))) }},
+                    instances: [
+                        (shape: "floor", material: "floor"),
+                        (shape: "panel", material: "white", transform: (translate: (2.0, 1.0, -1.0), rotate_deg: (90.0, 0.0, 0.0))),
+                    ],
+                )"#
+            );
+            let scene = scene(&ron);
+            let settings = RenderSettings { mode: RenderMode::Raytrace, spp: 128, ..pixel_centre_settings(&scene) };
+            let r = rendered(&gpu, scene.clone(), settings);
+            let linear = r.read_linear(&gpu).unwrap();
+            // A row through the reflection (below the horizon, on the floor):
+            // the white panel's reflected left edge at x = 0.
+            let y = 100;
+            let profile: Vec<f64> = (0..160).map(|x| lum(&linear, 160, x, y)).collect();
+            let p10 = profile.iter().position(|&v| v > 0.1).expect("reflection visible");
+            let p90 = profile.iter().position(|&v| v > 0.9 * profile[159]).expect("reflection visible");
+            (p90 - p10) as f64
+        })
+        .collect();
+    assert!(
+        widths[0] <= 2.0,
+        "roughness 0 should be a mirror, edge width {}",
+        widths[0]
+    );
+    assert!(
+        widths[1] > widths[0] && widths[2] > widths[1],
+        "edge widths should grow with roughness: {widths:?}"
+    );
+}
+
+/// Scene fields of the effects: f-number with focal length gives the
+/// aperture radius f / (2N) (50 mm at f/2.8: 8.93 mm), and a moving
+/// instance's transform at mid-shutter has the mean translation, the mean
+/// scale and the half-way rotation.
+#[test]
+fn lens_and_motion_fields_parse_to_their_physical_meaning() {
+    let ron = r#"(version: 1,
+        camera: (eye: (1.6, -1.5, 1.0), target: (0.0, 4.0, 0.5), up: (0.0, 0.0, 1.0), fov_y_deg: 23.0, width: 64, height: 36,
+                 f_number: 2.8, focal_length_mm: 50.0, focus_distance: 5.75, aperture: Polygon(blades: 6, rotation_deg: 10.0),
+                 shutter_open_s: 0.0, shutter_close_s: 0.01, eye_end: (1.7, -1.5, 1.0)),
+        lights: [],
+        materials: { "m": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) },
+        shapes: { "ball": Sphere(radius: 0.5) },
+        instances: [(shape: "ball", material: "m", transform: (translate: (0.0, 7.0, 0.5), rotate_deg: (0.0, 0.0, 0.0), scale: (1.0, 1.0, 1.0)),
+                     transform_end: (translate: (1.0, 7.0, 0.5), rotate_deg: (0.0, 0.0, 90.0), scale: (2.0, 2.0, 2.0)))],
+    )"#;
+    let scene = scene(ron);
+    assert!(
+        (scene.camera.aperture_radius - 0.05 / 5.6).abs() < 1e-6,
+        "{}",
+        scene.camera.aperture_radius
+    );
+    assert!((scene.camera.at(0.5).eye.x - 1.65).abs() < 1e-6);
+    let mid = scene.instances[0].world_from_object_at(0.5);
+    let (scale, rotation, translation) = mid.to_scale_rotation_translation();
+    assert!((translation - glam::Vec3::new(0.5, 7.0, 0.5)).length() < 1e-5);
+    assert!((scale - glam::Vec3::splat(1.5)).length() < 1e-5);
+    let (axis, angle) = rotation.to_axis_angle();
+    assert!(
+        (angle - std::f32::consts::FRAC_PI_4).abs() < 1e-4 && axis.z > 0.999,
+        "{axis} {angle}"
+    );
+}
