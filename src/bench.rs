@@ -2,6 +2,8 @@
 //! chosen, on the scenes other renderers were timed on
 //! (../shared/bench/anchor-scenes.md). Timings live here, never in tests.
 
+mod csg;
+
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -15,7 +17,7 @@ use celray::scene::{Instance, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
-    /// Which cases: raster, rays or all.
+    /// Which cases: raster, rays, csg or all.
     #[arg(default_value = "all")]
     pub suite: String,
     /// Frames timed per case (after 3 warm-up frames).
@@ -369,10 +371,12 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     match args.suite.as_str() {
         "raster" => raster_suite(gpu, args, helmet.as_ref()),
         "rays" => rays_suite(gpu, args, helmet.as_ref()),
+        "csg" => csg::csg_suite(gpu, args),
         "all" => {
             raster_suite(gpu, args, helmet.as_ref())?;
-            rays_suite(gpu, args, helmet.as_ref())
+            rays_suite(gpu, args, helmet.as_ref())?;
+            csg::csg_suite(gpu, args)
         }
-        other => anyhow::bail!("bench suite {other:?}: expected raster, rays or all"),
+        other => anyhow::bail!("bench suite {other:?}: expected raster, rays, csg or all"),
     }
 }

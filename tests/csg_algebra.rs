@@ -308,6 +308,28 @@ fn bad_csg_input_gives_the_stated_errors() {
         e.contains("up to 9 separate intervals") && e.contains("limit of 8"),
         "{e}"
     );
+    // A balanced tree of 16 box leaves (2 by 2 intersections): one interval
+    // per ray, but its evaluation needs 5 stack entries, over the 4 allowed.
+    let mut level: Vec<String> = (0..16)
+        .map(|i| {
+            format!(
+                "Box(half_extents: (1.0, 1.0, 1.0), transform: (rotate_deg: (0.0, {i}.0, 0.0)))"
+            )
+        })
+        .collect();
+    while level.len() > 1 {
+        level = level
+            .chunks(2)
+            .map(|p| format!("Intersection([{}, {}])", p[0], p[1]))
+            .collect();
+    }
+    let e = load_err(&level[0]);
+    assert!(
+        e.contains("CSG tree too deep")
+            && e.contains("needs 5 stack entries")
+            && e.contains("limit of 4"),
+        "{e}"
+    );
     // Eight is fine.
     let eight = (0..8)
         .map(|i| format!("Sphere(radius: 0.4, transform: (translate: ({i}.0, 0.0, 0.0)))"))

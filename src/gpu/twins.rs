@@ -190,7 +190,7 @@ pub const CSG_NO_MATERIAL: u32 = u32::MAX;
 /// Intervals per CSG stack entry (twin of `scene::CSG_MAX_INTERVALS`).
 pub const CSG_MAX_INTERVALS: u32 = 8;
 /// CSG stack entries (twin of `scene::CSG_STACK`).
-pub const CSG_STACK: u32 = 6;
+pub const CSG_STACK: u32 = 4;
 /// Crossings a mesh leaf keeps per ray (twin of `scene::CSG_MESH_MAX_CROSSINGS`).
 pub const CSG_MESH_MAX_CROSSINGS: u32 = 8;
 

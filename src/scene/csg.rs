@@ -29,7 +29,7 @@ use super::{Mesh, Shape};
 /// Intervals one stack entry of the CSG evaluator holds (GPU and CPU).
 pub const CSG_MAX_INTERVALS: u32 = 8;
 /// Stack entries of the CSG evaluator; a tree needing more is refused.
-pub const CSG_STACK: u32 = 6;
+pub const CSG_STACK: u32 = 4;
 /// Ray-mesh crossings a mesh leaf keeps per ray (K); its interval bound is
 /// half of it.
 pub const CSG_MESH_MAX_CROSSINGS: u32 = 8;
