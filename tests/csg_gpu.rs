@@ -518,3 +518,36 @@ fn shipped_csg_scenes_render_without_overflow() {
         );
     }
 }
+
+/// Raster mode has no ray tracing, and CSG is never tessellated: a scene of
+/// a CSG shape and a sphere renders the sphere only (documented choice).
+#[test]
+fn raster_mode_draws_nothing_for_csg() {
+    let gpu = gpu();
+    let scene = scene(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 6.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 64, height: 48),
+            materials: { "m": (base_color: (0.8, 0.2, 0.1), model: Toon(bands: 3)) },
+            shapes: { "holed": Difference(Sphere(radius: 1.0), Box(half_extents: (0.3, 0.3, 3.0))), "ball": Sphere(radius: 0.5) },
+            instances: [(shape: "holed", material: "m", transform: (translate: (-1.2, 0.0, 0.0))),
+                        (shape: "ball", material: "m", transform: (translate: (1.2, 0.0, 0.0)))],
+        )"#,
+    );
+    let r = rendered(&gpu, scene.clone(), settings(&scene, RenderMode::Raster));
+    let ids = r.read_ids(&gpu).unwrap();
+    let order = &r.scene_buffers().instance_order;
+    let drawn: Vec<usize> = ids
+        .iter()
+        .filter(|&&id| id != 0)
+        .map(|&id| order[id as usize - 1])
+        .collect();
+    assert!(drawn.len() > 50, "the sphere should be drawn");
+    assert!(
+        drawn.iter().all(|&i| i == 1),
+        "only the sphere is rasterized"
+    );
+    assert!(
+        r.scene_buffers().draws.iter().all(|d| d.shape != 0),
+        "no draw for the CSG shape"
+    );
+}

@@ -26,6 +26,11 @@
 // Includes: after intersect.wgsl and traverse.wgsl; the pass declares
 // `csg_ops` and `csg_leaves`.
 
+// Pipelines for scenes without CSG set this to false, which removes the CSG
+// code from the traversal: on lavapipe its mere presence in the traversal
+// loop made non-CSG scenes ~2x slower (measured, release, 640x360).
+override CSG_ENABLED: bool = true;
+
 const SHAPE_CSG: u32 = 7u;
 const CSG_OP_END: u32 = 0u;
 const CSG_OP_LEAF: u32 = 1u;

@@ -120,7 +120,7 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
 fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
     let s = shapes[shape];
     object_material = CSG_NO_MATERIAL;
-    if s.kind == SHAPE_CSG {
+    if CSG_ENABLED && s.kind == SHAPE_CSG {
         return intersect_csg(s.blas_root, o, d, t_min, t_max, stack, base);
     }
     if s.kind == SHAPE_MESH {

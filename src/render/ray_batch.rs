@@ -11,7 +11,10 @@ use crate::render::scene_buffers::SceneBuffers;
 use crate::render::trace::read_write_storage_entry;
 
 pub struct RayBatch {
+    /// Without and with the CSG code (override `CSG_ENABLED`): the first
+    /// serves scenes without CSG shapes, as in the trace pass.
     pipeline: wgpu::ComputePipeline,
+    csg_pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
 }
 
@@ -43,17 +46,26 @@ impl RayBatch {
                         bind_group_layouts: &[Some(&layout)],
                         immediate_size: 0,
                     });
-            let pipeline = gpu
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("ray batch pipeline"),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some("main"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-            RayBatch { pipeline, layout }
+            let make = |csg: bool| {
+                gpu.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some("ray batch pipeline"),
+                        layout: Some(&pipeline_layout),
+                        module: &module,
+                        entry_point: Some("main"),
+                        compilation_options: wgpu::PipelineCompilationOptions {
+                            constants: &[("CSG_ENABLED", f64::from(u8::from(csg)))],
+                            ..Default::default()
+                        },
+                        cache: None,
+                    })
+            };
+            let (pipeline, csg_pipeline) = (make(false), make(true));
+            RayBatch {
+                pipeline,
+                csg_pipeline,
+                layout,
+            }
         })
     }
 
@@ -132,7 +144,11 @@ impl RayBatch {
                 label: Some("ray batch pass"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(if scene.accel.csg_ops.is_empty() {
+                &self.pipeline
+            } else {
+                &self.csg_pipeline
+            });
             pass.set_bind_group(0, &group, &[]);
             // At most 65,535 workgroups: up to 4 million rays per batch.
             let groups = (rays.len() as u32).div_ceil(RAY_BATCH_WORKGROUP);

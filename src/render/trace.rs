@@ -13,7 +13,13 @@ use crate::render::scene_buffers::SceneBuffers;
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 
 pub struct TracePass {
+    /// Built with the CSG code removed (`CSG_ENABLED = false`).
     pipeline: wgpu::ComputePipeline,
+    /// With CSG, built the first time a scene with CSG shapes is prepared.
+    csg_pipeline: Option<wgpu::ComputePipeline>,
+    use_csg: bool,
+    module: wgpu::ShaderModule,
+    pipeline_layout: wgpu::PipelineLayout,
     scene_layout: wgpu::BindGroupLayout,
     target_layout: wgpu::BindGroupLayout,
     bind_groups: Option<(wgpu::BindGroup, wgpu::BindGroup)>,
@@ -61,6 +67,31 @@ pub fn read_write_storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// The trace pipeline with or without the CSG code (override `CSG_ENABLED`).
+fn trace_pipeline(
+    gpu: &Gpu,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    csg: bool,
+) -> wgpu::ComputePipeline {
+    gpu.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(if csg {
+                "trace pipeline (CSG)"
+            } else {
+                "trace pipeline"
+            }),
+            layout: Some(layout),
+            module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &[("CSG_ENABLED", f64::from(u8::from(csg)))],
+                ..Default::default()
+            },
+            cache: None,
+        })
+}
+
 impl TracePass {
     pub fn new(gpu: &Gpu) -> Result<TracePass, GpuError> {
         let module = shader::create_module(gpu, "trace.wgsl")?;
@@ -105,16 +136,7 @@ impl TracePass {
                     bind_group_layouts: &[Some(&scene_layout), Some(&target_layout)],
                     immediate_size: 0,
                 });
-            let pipeline = gpu
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("trace pipeline"),
-                    layout: Some(&layout),
-                    module: &module,
-                    entry_point: Some("main"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
+            let pipeline = trace_pipeline(gpu, &layout, &module, false);
             let stats = gpu
                 .device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -126,6 +148,10 @@ impl TracePass {
                 });
             TracePass {
                 pipeline,
+                csg_pipeline: None,
+                use_csg: false,
+                module,
+                pipeline_layout: layout,
                 scene_layout,
                 target_layout,
                 bind_groups: None,
@@ -141,6 +167,15 @@ impl TracePass {
         scene: &SceneBuffers,
         targets: &Targets,
     ) {
+        self.use_csg = !scene.accel.csg_ops.is_empty();
+        if self.use_csg && self.csg_pipeline.is_none() {
+            self.csg_pipeline = Some(trace_pipeline(
+                gpu,
+                &self.pipeline_layout,
+                &self.module,
+                true,
+            ));
+        }
         let buffers = [
             frame,
             &scene.instances,
@@ -204,7 +239,10 @@ impl TracePass {
             label: Some("trace pass"),
             timestamp_writes: timer.map(|t| t.compute_writes("trace")),
         });
-        pass.set_pipeline(&self.pipeline);
+        match (&self.csg_pipeline, self.use_csg) {
+            (Some(csg), true) => pass.set_pipeline(csg),
+            _ => pass.set_pipeline(&self.pipeline),
+        }
         pass.set_bind_group(0, scene_group, &[]);
         pass.set_bind_group(1, target_group, &[]);
         pass.dispatch_workgroups(

@@ -53,6 +53,16 @@
 //!         "disk": Plane(Disk(radius: 2.0)),
 //!         // .obj, .gltf or .glb, relative to this file's directory
 //!         "cow": Mesh(path: "../models/spot/spot_triangulated.obj"),
+//!         // Constructive solid geometry: Union([..]), Intersection([..]) and
+//!         // Difference(a, b), nested freely; leaves are Sphere, Box, Cylinder,
+//!         // Cone or a closed Mesh(path: ..), each with an optional transform
+//!         // (within the shape) and material (its surfaces' colour; default:
+//!         // the instance's). Ray-traced only: raster mode draws nothing.
+//!         "holed": Difference(
+//!             Intersection([Box(half_extents: (0.8, 0.8, 0.8)), Sphere(radius: 1.05)]),
+//!             Cylinder(radius: 0.4, height: 2.0, transform: (rotate_deg: (90.0, 0.0, 0.0)),
+//!                      material: "plastic"),
+//!         ),
 //!     },
 //!     instances: [
 //!         // Every TRS field is optional; the matrix is T * Rz * Ry * Rx * S
@@ -72,6 +82,10 @@
 //!   index is their id); a name defined twice is an error.
 //! - Optional values may be written plainly (`focus_distance: 4.0`) or as
 //!   `Some(4.0)` / `None` (RON's `implicit_some` is on).
+//! - CSG: planes and disks have no inside and are refused as leaves; mesh
+//!   leaves must be closed; a tree that a ray could split into more than
+//!   [`CSG_MAX_INTERVALS`] intervals, or that needs more than [`CSG_STACK`]
+//!   evaluation stack entries, is refused (see [`Csg`] for the counting).
 //! - Instance transforms must be finite, affine and invertible
 //!   (`|det| >= 1e-8`).
 //! - All colours are linear RGB.
