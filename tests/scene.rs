@@ -234,7 +234,8 @@ fn format_example_in_the_module_docs_parses() {
     let end = start + doc[start..].iter().position(|l| *l == "```").unwrap();
     let example = doc[start..end].join("\n");
     let scene = parse(&example).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(scene.shapes.len(), 7);
+    assert_eq!(scene.shapes.len(), 8);
+    assert!(matches!(scene.shapes[7], celray::scene::Shape::Csg(_)));
     assert_eq!(scene.instances.len(), 3);
     assert_eq!(scene.instances[1].world_from_object.w_axis.x, 2.0);
 }
