@@ -628,3 +628,79 @@ fn csg_solid_appears_in_a_mirror_where_the_geometry_says() {
         );
     }
 }
+
+/// A mesh leaf that a ray crosses more than K = 8 times (five disjoint boxes
+/// in a row, one closed mesh: 10 crossings) is never silently truncated:
+/// the CPU reference reports an overflow, and the GPU paints those pixels
+/// magenta and counts them; rays that cross fewer times are fine.
+#[test]
+fn mesh_leaf_over_k_crossings_is_reported_not_truncated() {
+    let gpu = gpu();
+    let mut row = celray::scene::Mesh::default();
+    for i in 0..5 {
+        let b = tessellate(&Shape::Box {
+            half_extents: Vec3::splat(0.3),
+        });
+        let base = row.positions.len() as u32;
+        row.positions.extend(
+            b.positions
+                .iter()
+                .map(|p| *p + Vec3::new(0.0, 0.0, i as f32 - 2.0)),
+        );
+        row.normals.extend(&b.normals);
+        row.indices.extend(b.indices.iter().map(|k| k + base));
+    }
+    let csg = Csg {
+        root: Box::new(CsgNode::Difference(
+            Box::new(CsgNode::Leaf(CsgLeaf {
+                shape: Shape::Mesh(row),
+                csg_from_leaf: Mat4::IDENTITY,
+                material: None,
+            })),
+            Box::new(CsgNode::Leaf(CsgLeaf {
+                shape: Shape::Sphere { radius: 0.1 },
+                csg_from_leaf: Mat4::from_translation(Vec3::new(5.0, 0.0, 0.0)),
+                material: None,
+            })),
+        )),
+    };
+    csg.check().unwrap();
+    let program = celray::accel::csg::CompiledCsg::new(&csg).unwrap();
+    // Along the row: 10 crossings. Across one box: 2.
+    assert!(program
+        .intervals(Vec3::new(0.05, 0.02, 9.0), Vec3::NEG_Z)
+        .is_err());
+    assert_eq!(
+        program
+            .intervals(Vec3::new(9.0, 0.02, 0.05), Vec3::NEG_X)
+            .unwrap()
+            .len(),
+        2
+    );
+
+    let mut scene = scene(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 8.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 20.0, width: 64, height: 64),
+            materials: { "m": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) },
+        )"#,
+    );
+    scene.shapes.push(Shape::Csg(csg));
+    scene.shape_names.push("row".into());
+    scene.instances.push(Instance {
+        shape: 0,
+        material: 0,
+        world_from_object: Mat4::IDENTITY,
+        world_from_object_end: None,
+    });
+    let r = rendered(&gpu, scene.clone(), settings(&scene, RenderMode::Raytrace));
+    let img = r.read_srgb8(&gpu).unwrap();
+    let overflow = r.overflow_pixels(&gpu).unwrap();
+    // The camera looks down the row: the box's 0.6 x 0.6 face spans
+    // ~0.6 / (2 * 6.3 * tan 10 deg) * 64 = 17 px, so ~280 pixels overflow.
+    assert!(overflow > 100, "only {overflow} pixels reported overflow");
+    let magenta = img
+        .chunks(4)
+        .filter(|p| p[0] == 255 && p[1] == 0 && p[2] == 255)
+        .count();
+    assert_eq!(magenta as u32, overflow, "each overflowed pixel is magenta");
+}
