@@ -15,7 +15,7 @@ use celray::scene::{Instance, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
-    /// Which cases: raster, rays or all.
+    /// Which cases: raster, rays, effects or all.
     #[arg(default_value = "all")]
     pub suite: String,
     /// Frames timed per case (after 3 warm-up frames).
@@ -353,6 +353,40 @@ fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Re
     Ok(())
 }
 
+/// Time per accumulated sample (all passes, hybrid mode) with each effect.
+fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
+    println!("\n## Time per accumulated sample ({}x{}, hybrid mode)\n", args.width, args.height);
+    println!("| scene | effect | ms per sample (mean) | median | GPU raster | GPU trace | GPU accumulate |");
+    println!("|---|---|---|---|---|---|---|");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let default = Scene::builtin_default();
+    let mut dof = default.clone();
+    dof.camera.aperture_radius = 0.08;
+    let mut motion = default.clone();
+    if let Some(inst) = motion.instances.get_mut(2) {
+        inst.world_from_object_end = Some(Mat4::from_translation(Vec3::new(0.6, 0.0, 0.0)) * inst.world_from_object);
+    }
+    let cases = [
+        ("default", "anti-aliasing only", default.clone()),
+        ("default", "+ depth of field (disk, r = 0.08)", dof),
+        ("default", "+ motion blur (one moving sphere)", motion),
+        ("mirrors.ron", "mirror + glossy reflections, shadows", Scene::load(&dir.join("mirrors.ron"))?),
+        ("anchor_dof_motion.ron", "depth of field + motion blur (anchor scene 2)", Scene::load(&dir.join("anchor_dof_motion.ron"))?),
+    ];
+    for (name, effect, scene) in cases {
+        let st = time_frames(gpu, scene, RenderMode::Hybrid, args)?;
+        println!(
+            "| {name} | {effect} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            st.mean,
+            st.median,
+            pass_ms(&st, "raster"),
+            pass_ms(&st, "trace"),
+            pass_ms(&st, "accumulate")
+        );
+    }
+    Ok(())
+}
+
 pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     println!("adapter: {}", gpu.summary);
     let helmet_path = args.models.join("FlightHelmet/FlightHelmet.gltf");
@@ -369,10 +403,12 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     match args.suite.as_str() {
         "raster" => raster_suite(gpu, args, helmet.as_ref()),
         "rays" => rays_suite(gpu, args, helmet.as_ref()),
+        "effects" => effects_suite(gpu, args),
         "all" => {
             raster_suite(gpu, args, helmet.as_ref())?;
-            rays_suite(gpu, args, helmet.as_ref())
+            rays_suite(gpu, args, helmet.as_ref())?;
+            effects_suite(gpu, args)
         }
-        other => anyhow::bail!("bench suite {other:?}: expected raster, rays or all"),
+        other => anyhow::bail!("bench suite {other:?}: expected raster, rays, effects or all"),
     }
 }
