@@ -177,13 +177,13 @@ fn raster_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::
     let row = |name: &str, scene: Scene, mode: RenderMode| -> anyhow::Result<()> {
         let tris = triangles(&scene);
         let s = time_frames(gpu, scene, mode, args)?;
+        let trace = if mode == RenderMode::Raster { "-".to_string() } else { format!("{:.1}", pass_ms(&s, "trace")) };
         println!(
-            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {tris} |",
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {trace} | {:.1} | {tris} |",
             mode.name(),
             s.mean,
             s.median,
             pass_ms(&s, "raster"),
-            pass_ms(&s, "trace"),
             pass_ms(&s, "accumulate")
         );
         Ok(())

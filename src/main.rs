@@ -43,7 +43,7 @@ enum Command {
     Compare(CompareArgs),
     /// List every adapter wgpu can see, with backend, type and driver.
     Adapters,
-    /// Time the raster path on the default scene and on FlightHelmet.
+    /// Benchmarks: raster frames, ray throughput, effects (see README).
     Bench(bench::BenchArgs),
 }
 
