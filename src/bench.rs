@@ -177,7 +177,11 @@ fn raster_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::
     let row = |name: &str, scene: Scene, mode: RenderMode| -> anyhow::Result<()> {
         let tris = triangles(&scene);
         let s = time_frames(gpu, scene, mode, args)?;
-        let trace = if mode == RenderMode::Raster { "-".to_string() } else { format!("{:.1}", pass_ms(&s, "trace")) };
+        let trace = if mode == RenderMode::Raster {
+            "-".to_string()
+        } else {
+            format!("{:.1}", pass_ms(&s, "trace"))
+        };
         println!(
             "| {name} | {} | {:.1} | {:.1} | {:.1} | {trace} | {:.1} | {tris} |",
             mode.name(),
@@ -355,7 +359,10 @@ fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Re
 
 /// Time per accumulated sample (all passes, hybrid mode) with each effect.
 fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
-    println!("\n## Time per accumulated sample ({}x{}, hybrid mode)\n", args.width, args.height);
+    println!(
+        "\n## Time per accumulated sample ({}x{}, hybrid mode)\n",
+        args.width, args.height
+    );
     println!("| scene | effect | ms per sample (mean) | median | GPU raster | GPU trace | GPU accumulate |");
     println!("|---|---|---|---|---|---|---|");
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
@@ -364,14 +371,23 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     dof.camera.aperture_radius = 0.08;
     let mut motion = default.clone();
     if let Some(inst) = motion.instances.get_mut(2) {
-        inst.world_from_object_end = Some(Mat4::from_translation(Vec3::new(0.6, 0.0, 0.0)) * inst.world_from_object);
+        inst.world_from_object_end =
+            Some(Mat4::from_translation(Vec3::new(0.6, 0.0, 0.0)) * inst.world_from_object);
     }
     let cases = [
         ("default", "anti-aliasing only", default.clone()),
         ("default", "+ depth of field (disk, r = 0.08)", dof),
         ("default", "+ motion blur (one moving sphere)", motion),
-        ("mirrors.ron", "mirror + glossy reflections, shadows", Scene::load(&dir.join("mirrors.ron"))?),
-        ("anchor_dof_motion.ron", "depth of field + motion blur (anchor scene 2)", Scene::load(&dir.join("anchor_dof_motion.ron"))?),
+        (
+            "mirrors.ron",
+            "mirror + glossy reflections, shadows",
+            Scene::load(&dir.join("mirrors.ron"))?,
+        ),
+        (
+            "anchor_dof_motion.ron",
+            "depth of field + motion blur (anchor scene 2)",
+            Scene::load(&dir.join("anchor_dof_motion.ron"))?,
+        ),
     ];
     for (name, effect, scene) in cases {
         let st = time_frames(gpu, scene, RenderMode::Hybrid, args)?;
