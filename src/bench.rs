@@ -403,6 +403,56 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Samples and seconds each pattern needs for a FLIP mean of 0.02 against a
+/// 1024-sample jittered reference (default scene, raster mode, 320 x 180).
+fn flip_convergence(gpu: &Gpu) -> anyhow::Result<()> {
+    println!("\n## Samples to reach FLIP mean 0.02 (default scene, raster mode, 320x180, vs 1024 jittered samples)\n");
+    println!("| pattern | samples | seconds | FLIP mean at that count |");
+    println!("|---|---|---|---|");
+    let scene = Scene::builtin_default();
+    let settings = |pattern, spp| RenderSettings {
+        width: 320,
+        height: 180,
+        spp,
+        pattern,
+        mode: RenderMode::Raster,
+        ..RenderSettings::default()
+    };
+    let reference = celray::capture::render_frame(
+        gpu,
+        scene.clone(),
+        settings(celray::sampling::PixelPattern::Jittered, 1024),
+        false,
+        |_, _| {},
+    )?;
+    for pattern in celray::sampling::PixelPattern::ALL {
+        let mut found = None;
+        for spp in [1u32, 2, 4, 8, 16, 32, 64, 128, 256, 512] {
+            let start = Instant::now();
+            let frame = celray::capture::render_frame(
+                gpu,
+                scene.clone(),
+                settings(pattern, spp),
+                false,
+                |_, _| {},
+            )?;
+            let seconds = start.elapsed().as_secs_f64();
+            let flip = celray::compare::flip_mean(&reference, &frame);
+            if flip <= 0.02 {
+                found = Some((spp, seconds, flip));
+                break;
+            }
+        }
+        match found {
+            Some((spp, seconds, flip)) => {
+                println!("| {} | {spp} | {seconds:.2} | {flip:.4} |", pattern.name())
+            }
+            None => println!("| {} | > 512 | - | - |", pattern.name()),
+        }
+    }
+    Ok(())
+}
+
 pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     println!("adapter: {}", gpu.summary);
     let helmet_path = args.models.join("FlightHelmet/FlightHelmet.gltf");
@@ -419,11 +469,15 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     match args.suite.as_str() {
         "raster" => raster_suite(gpu, args, helmet.as_ref()),
         "rays" => rays_suite(gpu, args, helmet.as_ref()),
-        "effects" => effects_suite(gpu, args),
+        "effects" => {
+            effects_suite(gpu, args)?;
+            flip_convergence(gpu)
+        }
         "all" => {
             raster_suite(gpu, args, helmet.as_ref())?;
             rays_suite(gpu, args, helmet.as_ref())?;
-            effects_suite(gpu, args)
+            effects_suite(gpu, args)?;
+            flip_convergence(gpu)
         }
         other => anyhow::bail!("bench suite {other:?}: expected raster, rays, effects or all"),
     }
