@@ -404,15 +404,17 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
 }
 
 /// Samples and seconds each pattern needs for a FLIP mean of 0.02 against a
-/// 1024-sample jittered reference (default scene, raster mode, 320 x 180).
+/// 1024-sample jittered reference, on the 1D zone plate of `celray
+/// experiment sampling` (256 x 256, raster mode): fine bars make the
+/// patterns differ, where a mostly flat toon scene passes at one sample.
 fn flip_convergence(gpu: &Gpu) -> anyhow::Result<()> {
-    println!("\n## Samples to reach FLIP mean 0.02 (default scene, raster mode, 320x180, vs 1024 jittered samples)\n");
+    println!("\n## Samples to reach FLIP mean 0.02 (1D zone plate, raster mode, 256x256, vs 1024 jittered samples)\n");
     println!("| pattern | samples | seconds | FLIP mean at that count |");
     println!("|---|---|---|---|");
-    let scene = Scene::builtin_default();
+    let scene = crate::experiment::zone_plate_scene(256)?;
     let settings = |pattern, spp| RenderSettings {
-        width: 320,
-        height: 180,
+        width: 256,
+        height: 256,
         spp,
         pattern,
         mode: RenderMode::Raster,

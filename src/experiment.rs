@@ -50,7 +50,7 @@ fn edge_scene(size: u32) -> anyhow::Result<Scene> {
 /// A one-dimensional zone plate: black bars whose n-th edge sits at
 /// c * sqrt(n), so the frequency grows linearly across the image, from
 /// well below to above the pixel rate.
-fn zone_plate_scene(size: u32) -> anyhow::Result<Scene> {
+pub fn zone_plate_scene(size: u32) -> anyhow::Result<Scene> {
     let half_width = 4.0 * 15f64.to_radians().tan();
     let pixel = 2.0 * half_width / f64::from(size);
     // Edge spacing c^2 / (2 x) reaches half a pixel at the right border.
