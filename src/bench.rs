@@ -17,7 +17,7 @@ use celray::scene::{Instance, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
-    /// Which cases: raster, rays, csg or all.
+    /// Which cases: raster, rays, effects, csg or all.
     #[arg(default_value = "all")]
     pub suite: String,
     /// Frames timed per case (after 3 warm-up frames).
@@ -179,13 +179,17 @@ fn raster_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::
     let row = |name: &str, scene: Scene, mode: RenderMode| -> anyhow::Result<()> {
         let tris = triangles(&scene);
         let s = time_frames(gpu, scene, mode, args)?;
+        let trace = if mode == RenderMode::Raster {
+            "-".to_string()
+        } else {
+            format!("{:.1}", pass_ms(&s, "trace"))
+        };
         println!(
-            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {tris} |",
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {trace} | {:.1} | {tris} |",
             mode.name(),
             s.mean,
             s.median,
             pass_ms(&s, "raster"),
-            pass_ms(&s, "trace"),
             pass_ms(&s, "accumulate")
         );
         Ok(())
@@ -355,6 +359,104 @@ fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Re
     Ok(())
 }
 
+/// Time per accumulated sample (all passes, hybrid mode) with each effect.
+fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
+    println!(
+        "\n## Time per accumulated sample ({}x{}, hybrid mode)\n",
+        args.width, args.height
+    );
+    println!("| scene | effect | ms per sample (mean) | median | GPU raster | GPU trace | GPU accumulate |");
+    println!("|---|---|---|---|---|---|---|");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let default = Scene::builtin_default();
+    let mut dof = default.clone();
+    dof.camera.aperture_radius = 0.08;
+    let mut motion = default.clone();
+    if let Some(inst) = motion.instances.get_mut(2) {
+        inst.world_from_object_end =
+            Some(Mat4::from_translation(Vec3::new(0.6, 0.0, 0.0)) * inst.world_from_object);
+    }
+    let cases = [
+        ("default", "anti-aliasing only", default.clone()),
+        ("default", "+ depth of field (disk, r = 0.08)", dof),
+        ("default", "+ motion blur (one moving sphere)", motion),
+        (
+            "mirrors.ron",
+            "mirror + glossy reflections, shadows",
+            Scene::load(&dir.join("mirrors.ron"))?,
+        ),
+        (
+            "anchor_dof_motion.ron",
+            "depth of field + motion blur (anchor scene 2)",
+            Scene::load(&dir.join("anchor_dof_motion.ron"))?,
+        ),
+    ];
+    for (name, effect, scene) in cases {
+        let st = time_frames(gpu, scene, RenderMode::Hybrid, args)?;
+        println!(
+            "| {name} | {effect} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            st.mean,
+            st.median,
+            pass_ms(&st, "raster"),
+            pass_ms(&st, "trace"),
+            pass_ms(&st, "accumulate")
+        );
+    }
+    Ok(())
+}
+
+/// Samples and seconds each pattern needs for a FLIP mean of 0.02 against a
+/// 1024-sample jittered reference, on the 1D zone plate of `celray
+/// experiment sampling` (256 x 256, raster mode): fine bars make the
+/// patterns differ, where a mostly flat toon scene passes at one sample.
+fn flip_convergence(gpu: &Gpu) -> anyhow::Result<()> {
+    println!("\n## Samples to reach FLIP mean 0.02 (1D zone plate, raster mode, 256x256, vs 1024 jittered samples)\n");
+    println!("| pattern | samples | seconds | FLIP mean at that count |");
+    println!("|---|---|---|---|");
+    let scene = crate::experiment::zone_plate_scene(256)?;
+    let settings = |pattern, spp| RenderSettings {
+        width: 256,
+        height: 256,
+        spp,
+        pattern,
+        mode: RenderMode::Raster,
+        ..RenderSettings::default()
+    };
+    let reference = celray::capture::render_frame(
+        gpu,
+        scene.clone(),
+        settings(celray::sampling::PixelPattern::Jittered, 1024),
+        false,
+        |_, _| {},
+    )?;
+    for pattern in celray::sampling::PixelPattern::ALL {
+        let mut found = None;
+        for spp in [1u32, 2, 4, 8, 16, 32, 64, 128, 256, 512] {
+            let start = Instant::now();
+            let frame = celray::capture::render_frame(
+                gpu,
+                scene.clone(),
+                settings(pattern, spp),
+                false,
+                |_, _| {},
+            )?;
+            let seconds = start.elapsed().as_secs_f64();
+            let flip = celray::compare::flip_mean(&reference, &frame);
+            if flip <= 0.02 {
+                found = Some((spp, seconds, flip));
+                break;
+            }
+        }
+        match found {
+            Some((spp, seconds, flip)) => {
+                println!("| {} | {spp} | {seconds:.2} | {flip:.4} |", pattern.name())
+            }
+            None => println!("| {} | > 512 | - | - |", pattern.name()),
+        }
+    }
+    Ok(())
+}
+
 pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     println!("adapter: {}", gpu.summary);
     let helmet_path = args.models.join("FlightHelmet/FlightHelmet.gltf");
@@ -371,12 +473,18 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     match args.suite.as_str() {
         "raster" => raster_suite(gpu, args, helmet.as_ref()),
         "rays" => rays_suite(gpu, args, helmet.as_ref()),
+        "effects" => {
+            effects_suite(gpu, args)?;
+            flip_convergence(gpu)
+        }
         "csg" => csg::csg_suite(gpu, args),
         "all" => {
             raster_suite(gpu, args, helmet.as_ref())?;
             rays_suite(gpu, args, helmet.as_ref())?;
+            effects_suite(gpu, args)?;
+            flip_convergence(gpu)?;
             csg::csg_suite(gpu, args)
         }
-        other => anyhow::bail!("bench suite {other:?}: expected raster, rays, csg or all"),
+        other => anyhow::bail!("bench suite {other:?}: expected raster, rays, effects, csg or all"),
     }
 }

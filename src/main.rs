@@ -2,6 +2,7 @@
 //! shading comparison, adapter listing, benchmarks.
 
 mod bench;
+mod experiment;
 
 use std::path::{Path, PathBuf};
 
@@ -43,7 +44,10 @@ enum Command {
     Compare(CompareArgs),
     /// List every adapter wgpu can see, with backend, type and driver.
     Adapters,
-    /// Time the raster path on the default scene and on FlightHelmet.
+    /// Measure and plot how each sub-pixel pattern converges
+    /// (`celray experiment sampling -o plot.png`).
+    Experiment(experiment::ExperimentArgs),
+    /// Benchmarks: raster frames, ray throughput, effects (see README).
     Bench(bench::BenchArgs),
 }
 
@@ -229,6 +233,10 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Render(args) => render(args, &adapter_choice(&cli.adapter)),
+        Command::Experiment(args) => {
+            let gpu = Gpu::new_headless(&adapter_choice(&cli.adapter))?;
+            experiment::run(&gpu, &args)
+        }
         Command::Bench(args) => {
             let gpu = Gpu::new_headless(&adapter_choice(&cli.adapter))?;
             bench::run(&gpu, &args)

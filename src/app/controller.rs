@@ -358,6 +358,20 @@ pub fn axis_view(cam: &Camera, view: AxisView, bounds: (Vec3, Vec3), aspect: f32
     }
 }
 
+/// The focus distance that puts the surface seen at `uv` (in [0, 1]^2 over
+/// the view, y down) in focus: the view depth of the first hit of the
+/// primary ray there, found by the CPU ray tracer; None over background.
+pub fn focus_at(scene: &crate::scene::Scene, uv: Vec2) -> Option<f32> {
+    let cam = &scene.camera;
+    let size = (1000u32, ((1000.0 / cam.aspect()).round() as u32).max(1));
+    let pixel = uv * Vec2::new(size.0 as f32, size.1 as f32);
+    let (origin, dir) = crate::render::camera::primary_ray(cam, size, pixel);
+    let order: Vec<usize> = (0..scene.instances.len()).collect();
+    let accel = crate::accel::SceneAccel::build(scene, &order).ok()?;
+    let hit = accel.closest_hit(origin, dir, 0.0, f32::MAX).hit?;
+    Some(hit.t * dir.dot((cam.target - cam.eye).normalize()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -607,5 +621,22 @@ mod tests {
         assert_eq!(drag_gesture(o, Middle, none), Gesture::Zoom);
         assert_eq!(drag_gesture(o, Middle, shift), Gesture::Pan);
         assert_eq!(drag_gesture(o, Middle, ctrl), Gesture::Zoom);
+    }
+
+    #[test]
+    fn click_focus_is_the_view_depth_of_the_surface_under_the_cursor() {
+        let ron = r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 100, height: 100),
+            lights: [], materials: { "m": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong) },
+            shapes: { "ball": Sphere(radius: 1.0) },
+            instances: [(shape: "ball", material: "m")],
+        )"#;
+        let scene =
+            crate::scene::Scene::from_ron_str(ron, "t.ron", std::path::Path::new(".")).unwrap();
+        // The centre of the view sees the sphere's front pole: depth 5 - 1.
+        let f = focus_at(&scene, Vec2::splat(0.5)).unwrap();
+        assert!((f - 4.0).abs() < 1e-3, "{f}");
+        // A corner sees only background.
+        assert!(focus_at(&scene, Vec2::new(0.02, 0.02)).is_none());
     }
 }

@@ -22,7 +22,7 @@ use crate::render::RenderSettings;
 use crate::scene::Scene;
 pub use layout::Layout;
 
-/// The controls, as shown in the panel and in docs/app.md.
+/// The controls, as shown in the panel and in README.md.
 pub const CONTROLS: &[(&str, &str)] = &[
     ("orbit", "left drag (Alt + left drag)"),
     (
@@ -45,6 +45,10 @@ pub const CONTROLS: &[(&str, &str)] = &[
     ("back / left / bottom view", "Ctrl + numpad 1 / 3 / 7"),
     ("screenshot of the window", "F12 (or the Screenshot button)"),
     ("open a scene", "drop a .ron file on the window"),
+    (
+        "focus the lens on a point",
+        "click it (sets the focus distance)",
+    ),
 ];
 
 /// How `celray view` was asked to run.
@@ -111,13 +115,13 @@ pub fn run(options: ViewOptions) -> Result<RunReport, AppError> {
 
 #[cfg(test)]
 mod tests {
-    /// The controls table of docs/app.md lists exactly [`super::CONTROLS`].
+    /// The controls table of README.md lists exactly [`super::CONTROLS`].
     #[test]
     fn docs_list_the_controls() {
-        let doc = include_str!("../../docs/app.md").replace(['*', '`'], "");
+        let doc = include_str!("../../README.md").replace(['*', '`'], "");
         for (action, input) in super::CONTROLS {
             let row = format!("| {action} | {input} |");
-            assert!(doc.contains(&row), "docs/app.md lacks the row {row:?}");
+            assert!(doc.contains(&row), "README.md lacks the row {row:?}");
         }
         let rows = doc
             .lines()

@@ -1324,6 +1324,19 @@ fn views_ui(
         model,
         rects.first().map_or(1.0, |r| r.height()),
     );
+    // A click (not a drag) on a view focuses the lens on what is under it.
+    if response.clicked() {
+        if let Some(pos) = response.interact_pointer_pos() {
+            if let Some(rect) = rects.iter().find(|r| r.contains(pos)) {
+                let uv = (pos - rect.min) / rect.size();
+                if let Some(distance) =
+                    controller::focus_at(&model.scene, glam::Vec2::new(uv.x, uv.y))
+                {
+                    model.scene.camera.focus_distance = Some(distance);
+                }
+            }
+        }
+    }
     rects
 }
 

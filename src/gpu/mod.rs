@@ -2,6 +2,7 @@
 //! WGSL structs, and readback. Imports wgpu; knows nothing of scenes.
 
 mod context;
+pub mod layout;
 pub mod readback;
 pub mod shader;
 pub mod timer;

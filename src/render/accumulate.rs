@@ -1,9 +1,11 @@
 //! Pass 3: add this sample's colour (with outlines) to the accumulator.
 
+use crate::gpu::layout::{
+    read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
+};
 use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::ACCUMULATE_WORKGROUP;
 use crate::gpu::{shader, Gpu, GpuError};
-use crate::render::raster::{read_only_storage_entry, uniform_entry};
 use crate::render::scene_buffers::SceneBuffers;
 use crate::render::targets::{GBuffer, Targets};
 
@@ -11,19 +13,6 @@ pub struct AccumulatePass {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     bind_groups: Option<[wgpu::BindGroup; 2]>,
-}
-
-fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Texture {
-            sample_type,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
 }
 
 impl AccumulatePass {
@@ -43,16 +32,7 @@ impl AccumulatePass {
                         texture_entry(3, float),
                         texture_entry(4, float),
                         texture_entry(5, wgpu::TextureSampleType::Uint),
-                        wgpu::BindGroupLayoutEntry {
-                            binding: 6,
-                            visibility: c,
-                            ty: wgpu::BindingType::Buffer {
-                                ty: wgpu::BufferBindingType::Storage { read_only: false },
-                                has_dynamic_offset: false,
-                                min_binding_size: None,
-                            },
-                            count: None,
-                        },
+                        read_write_storage_entry(6),
                     ],
                 });
             let pipeline_layout =

@@ -14,40 +14,8 @@ pub struct RasterPass {
     bind_group: Option<wgpu::BindGroup>,
 }
 
-fn storage_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: true },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A uniform-buffer layout entry.
-pub fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A read-only storage-buffer layout entry.
-pub fn read_only_storage_entry(
-    binding: u32,
-    visibility: wgpu::ShaderStages,
-) -> wgpu::BindGroupLayoutEntry {
-    storage_entry(binding, visibility)
-}
+use crate::gpu::layout::buffer_entries;
+pub use crate::gpu::layout::{read_only_storage_entry, uniform_entry};
 
 impl RasterPass {
     pub fn new(gpu: &Gpu) -> Result<RasterPass, GpuError> {
@@ -60,9 +28,9 @@ impl RasterPass {
                     label: Some("raster bind group layout"),
                     entries: &[
                         uniform_entry(0, vf),
-                        storage_entry(1, vf),
-                        storage_entry(2, wgpu::ShaderStages::FRAGMENT),
-                        storage_entry(3, wgpu::ShaderStages::FRAGMENT),
+                        read_only_storage_entry(1, vf),
+                        read_only_storage_entry(2, wgpu::ShaderStages::FRAGMENT),
+                        read_only_storage_entry(3, wgpu::ShaderStages::FRAGMENT),
                     ],
                 });
             let pipeline_layout =
@@ -136,24 +104,7 @@ impl RasterPass {
         self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raster bind group"),
             layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: scene.instances.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: scene.materials.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: scene.lights.as_entire_binding(),
-                },
-            ],
+            entries: &buffer_entries(&[frame, &scene.instances, &scene.materials, &scene.lights]),
         }));
     }
 

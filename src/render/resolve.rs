@@ -3,9 +3,9 @@
 
 use wgpu::util::DeviceExt;
 
+use crate::gpu::layout::{buffer_entries, read_only_storage_entry, uniform_entry};
 use crate::gpu::timer::PassTimer;
 use crate::gpu::{shader, Gpu, GpuError};
-use crate::render::raster::{read_only_storage_entry, uniform_entry};
 use crate::render::settings::RenderSettings;
 use crate::render::targets::Targets;
 
@@ -91,16 +91,7 @@ impl ResolvePass {
         self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("resolve bind group"),
             layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: targets.accum.as_entire_binding(),
-                },
-            ],
+            entries: &buffer_entries(&[&self.params, &targets.accum]),
         }));
     }
 
