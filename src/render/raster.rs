@@ -15,7 +15,7 @@ pub struct RasterPass {
 }
 
 use crate::gpu::layout::buffer_entries;
-pub use crate::gpu::layout::{read_only_storage_entry, uniform_entry};
+use crate::gpu::layout::{read_only_storage_entry, uniform_entry};
 
 impl RasterPass {
     pub fn new(gpu: &Gpu) -> Result<RasterPass, GpuError> {

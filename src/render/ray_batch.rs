@@ -4,11 +4,10 @@
 
 use wgpu::util::DeviceExt;
 
+use crate::gpu::layout::{buffer_entries, read_only_storage_entry, read_write_storage_entry};
 use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP};
 use crate::gpu::{readback, shader, Gpu, GpuError};
-use crate::render::raster::read_only_storage_entry;
 use crate::render::scene_buffers::SceneBuffers;
-use crate::render::trace::read_write_storage_entry;
 
 pub struct RayBatch {
     /// Without and with the CSG code (override `CSG_ENABLED`): the first
@@ -123,14 +122,7 @@ impl RayBatch {
             &scene.csg_ops,
             &scene.csg_leaves,
         ];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
+        let entries = buffer_entries(&buffers);
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ray batch bind group"),
             layout: &self.layout,

@@ -5,10 +5,13 @@
 
 use wgpu::util::DeviceExt;
 
+use crate::gpu::layout::{
+    buffer_entries, read_only_storage_entry, read_write_storage_entry, storage_texture_entry,
+    texture_entry, uniform_entry,
+};
 use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::TRACE_WORKGROUP;
 use crate::gpu::{readback, shader, Gpu, GpuError};
-use crate::render::raster::{read_only_storage_entry, uniform_entry};
 use crate::render::scene_buffers::SceneBuffers;
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 
@@ -25,46 +28,6 @@ pub struct TracePass {
     bind_groups: Option<(wgpu::BindGroup, wgpu::BindGroup)>,
     /// Counters the shader bumps: [0] = pixels that ran out of traversal steps.
     stats: wgpu::Buffer,
-}
-
-fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Texture {
-            sample_type,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
-}
-
-fn storage_texture_entry(binding: u32, format: wgpu::TextureFormat) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::StorageTexture {
-            access: wgpu::StorageTextureAccess::WriteOnly,
-            format,
-            view_dimension: wgpu::TextureViewDimension::D2,
-        },
-        count: None,
-    }
-}
-
-/// A read-write storage-buffer layout entry.
-pub fn read_write_storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: false },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
 }
 
 /// The trace pipeline with or without the CSG code (override `CSG_ENABLED`).
@@ -189,14 +152,7 @@ impl TracePass {
             &scene.csg_ops,
             &scene.csg_leaves,
         ];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
+        let entries = buffer_entries(&buffers);
         let scene_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace scene bind group"),
             layout: &self.scene_layout,
