@@ -38,6 +38,40 @@ fn covered_area(x: f64, y: f64, a: f64, b: f64, c: f64) -> f64 {
         * 0.5
 }
 
+/// The card's right edge (object x = 1) in image pixels, as the line
+/// a*x + b*y + c = 0 with the white (uncovered) side positive, and its two
+/// end points, projected by the unjittered pinhole camera.
+fn card_edge(scene: &celray::scene::Scene) -> ((f64, f64, f64), DVec2, DVec2) {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let m = scene.instances[0].world_from_object;
+    let depth = celray::render::camera::depth_range(&scene.camera, scene.bounds());
+    let cam = celray::render::camera::sample_camera(
+        &scene.camera,
+        (w, h),
+        Vec2::splat(0.5),
+        Vec2::ZERO,
+        depth,
+    );
+    let to_px = |p: glam::Vec3| {
+        let c = cam.clip_from_world * m.transform_point3(p).extend(1.0);
+        DVec2::new(
+            (f64::from(c.x / c.w) + 1.0) * 0.5 * f64::from(w),
+            (1.0 - f64::from(c.y / c.w)) * 0.5 * f64::from(h),
+        )
+    };
+    let (p, q) = (
+        to_px(glam::Vec3::new(1.0, 0.0, -1.0)),
+        to_px(glam::Vec3::new(1.0, 0.0, 1.0)),
+    );
+    let centre = to_px(glam::Vec3::ZERO);
+    let (mut a, mut b) = (q.y - p.y, p.x - q.x);
+    let mut c = -(a * p.x + b * p.y);
+    if a * centre.x + b * centre.y + c > 0.0 {
+        (a, b, c) = (-a, -b, -c);
+    }
+    ((a, b, c), p, q)
+}
+
 /// Linear luminance (red channel) of pixel (x, y).
 fn lum(linear: &[f32], w: u32, x: u32, y: u32) -> f64 {
     f64::from(linear[((y * w + x) * 4) as usize])
@@ -71,34 +105,7 @@ fn edge_pixels_converge_to_their_covered_fraction() {
         };
         let r = rendered(&gpu, scene.clone(), settings);
         let linear = r.read_linear(&gpu).unwrap();
-        // The card's right edge in the image: project two points of it with
-        // the unjittered camera (sample offset at the pixel centre).
-        let m = scene.instances[0].world_from_object;
-        let cam = celray::render::camera::sample_camera(
-            &scene.camera,
-            (w, h),
-            Vec2::splat(0.5),
-            Vec2::ZERO,
-            celray::render::camera::depth_range(&scene.camera, scene.bounds()),
-        );
-        let to_px = |p: glam::Vec3| {
-            let c = cam.clip_from_world * m.transform_point3(p).extend(1.0);
-            DVec2::new(
-                (f64::from(c.x / c.w) + 1.0) * 32.0,
-                (1.0 - f64::from(c.y / c.w)) * 32.0,
-            )
-        };
-        let (p, q) = (
-            to_px(glam::Vec3::new(1.0, 0.0, -1.0)),
-            to_px(glam::Vec3::new(1.0, 0.0, 1.0)),
-        );
-        // Line through p and q; the side away from the card's centre is white.
-        let centre = to_px(glam::Vec3::ZERO);
-        let (mut a, mut b) = (q.y - p.y, p.x - q.x);
-        let mut c = -(a * p.x + b * p.y);
-        if a * centre.x + b * centre.y + c > 0.0 {
-            (a, b, c) = (-a, -b, -c);
-        }
+        let ((a, b, c), p, q) = card_edge(&scene);
         let mut checked = 0;
         // Rows well inside the edge segment, away from the card's other edges.
         let (y0, y1) = (p.y.min(q.y) + 3.0, p.y.max(q.y) - 3.0);
@@ -382,32 +389,7 @@ fn edge_rms_error(gpu: &celray::gpu::Gpu, pattern: PixelPattern, spp: u32, seed:
     let linear = rendered(gpu, scene.clone(), settings)
         .read_linear(gpu)
         .unwrap();
-    let m = scene.instances[0].world_from_object;
-    let depth = celray::render::camera::depth_range(&scene.camera, scene.bounds());
-    let cam = celray::render::camera::sample_camera(
-        &scene.camera,
-        (w, h),
-        Vec2::splat(0.5),
-        Vec2::ZERO,
-        depth,
-    );
-    let to_px = |p: glam::Vec3| {
-        let c = cam.clip_from_world * m.transform_point3(p).extend(1.0);
-        DVec2::new(
-            (f64::from(c.x / c.w) + 1.0) * 64.0,
-            (1.0 - f64::from(c.y / c.w)) * 64.0,
-        )
-    };
-    let (p, q) = (
-        to_px(glam::Vec3::new(1.0, 0.0, -1.0)),
-        to_px(glam::Vec3::new(1.0, 0.0, 1.0)),
-    );
-    let centre = to_px(glam::Vec3::ZERO);
-    let (mut a, mut b) = (q.y - p.y, p.x - q.x);
-    let mut c = -(a * p.x + b * p.y);
-    if a * centre.x + b * centre.y + c > 0.0 {
-        (a, b, c) = (-a, -b, -c);
-    }
+    let ((a, b, c), _, _) = card_edge(&scene);
     let (mut sum, mut n) = (0.0, 0);
     for y in 1..h - 1 {
         for x in 1..w - 1 {
