@@ -12,6 +12,10 @@ const NO_HIT: u32 = 0xffffffffu;
 const MAX_TRAVERSAL_STEPS: u32 = 12000u;
 const TRAVERSAL_STACK: u32 = 64u;
 
+// False in pipelines for scenes without triangle meshes: the mesh traversal
+// is compiled out (the CPU driver runs a smaller kernel faster).
+override MESHES_ENABLED: bool = true;
+
 var<private> steps_left: u32;
 var<private> overflowed: bool;
 
@@ -124,6 +128,9 @@ fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, 
         return intersect_csg(s.blas_root, o, d, t_min, t_max, stack, base);
     }
     if s.kind == SHAPE_MESH {
+        if !MESHES_ENABLED {
+            return no_hit();
+        }
         return intersect_mesh(s.blas_root, o, d, t_min, t_max, stack, base);
     }
     return intersect_analytic(s.kind, s.params, o, d, t_min, t_max);

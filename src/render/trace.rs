@@ -16,11 +16,11 @@ use crate::render::scene_buffers::SceneBuffers;
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 
 pub struct TracePass {
-    /// Built with the CSG code removed (`CSG_ENABLED = false`).
-    pipeline: wgpu::ComputePipeline,
-    /// With CSG, built the first time a scene with CSG shapes is prepared.
-    csg_pipeline: Option<wgpu::ComputePipeline>,
-    use_csg: bool,
+    /// Pipeline variants by [`Variant::index`], each built the first time a
+    /// scene needs it: code a scene cannot reach (CSG, triangle meshes) is
+    /// compiled out, which the CPU driver runs markedly faster.
+    pipelines: [Option<wgpu::ComputePipeline>; 4],
+    variant: Variant,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
     scene_layout: wgpu::BindGroupLayout,
@@ -30,25 +30,45 @@ pub struct TracePass {
     stats: wgpu::Buffer,
 }
 
-/// The trace pipeline with or without the CSG code (override `CSG_ENABLED`).
+/// Which optional code a scene needs in the trace kernel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+struct Variant {
+    csg: bool,
+    meshes: bool,
+}
+
+impl Variant {
+    fn of(scene: &SceneBuffers) -> Variant {
+        Variant {
+            csg: !scene.accel.csg_ops.is_empty(),
+            meshes: !scene.accel.triangles.is_empty(),
+        }
+    }
+
+    fn index(self) -> usize {
+        usize::from(self.csg) + 2 * usize::from(self.meshes)
+    }
+}
+
+/// The trace pipeline with only the code `variant` needs (overrides
+/// `CSG_ENABLED` and `MESHES_ENABLED`).
 fn trace_pipeline(
     gpu: &Gpu,
     layout: &wgpu::PipelineLayout,
     module: &wgpu::ShaderModule,
-    csg: bool,
+    variant: Variant,
 ) -> wgpu::ComputePipeline {
     gpu.device
         .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(if csg {
-                "trace pipeline (CSG)"
-            } else {
-                "trace pipeline"
-            }),
+            label: Some("trace pipeline"),
             layout: Some(layout),
             module,
             entry_point: Some("main"),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &[("CSG_ENABLED", f64::from(u8::from(csg)))],
+                constants: &[
+                    ("CSG_ENABLED", f64::from(u8::from(variant.csg))),
+                    ("MESHES_ENABLED", f64::from(u8::from(variant.meshes))),
+                ],
                 ..Default::default()
             },
             cache: None,
@@ -99,7 +119,6 @@ impl TracePass {
                     bind_group_layouts: &[Some(&scene_layout), Some(&target_layout)],
                     immediate_size: 0,
                 });
-            let pipeline = trace_pipeline(gpu, &layout, &module, false);
             let stats = gpu
                 .device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -110,9 +129,8 @@ impl TracePass {
                         | wgpu::BufferUsages::COPY_DST,
                 });
             TracePass {
-                pipeline,
-                csg_pipeline: None,
-                use_csg: false,
+                pipelines: [None, None, None, None],
+                variant: Variant::default(),
                 module,
                 pipeline_layout: layout,
                 scene_layout,
@@ -130,13 +148,14 @@ impl TracePass {
         scene: &SceneBuffers,
         targets: &Targets,
     ) {
-        self.use_csg = !scene.accel.csg_ops.is_empty();
-        if self.use_csg && self.csg_pipeline.is_none() {
-            self.csg_pipeline = Some(trace_pipeline(
+        self.variant = Variant::of(scene);
+        let slot = &mut self.pipelines[self.variant.index()];
+        if slot.is_none() {
+            *slot = Some(trace_pipeline(
                 gpu,
                 &self.pipeline_layout,
                 &self.module,
-                true,
+                self.variant,
             ));
         }
         let buffers = [
@@ -195,10 +214,10 @@ impl TracePass {
             label: Some("trace pass"),
             timestamp_writes: timer.map(|t| t.compute_writes("trace")),
         });
-        match (&self.csg_pipeline, self.use_csg) {
-            (Some(csg), true) => pass.set_pipeline(csg),
-            _ => pass.set_pipeline(&self.pipeline),
-        }
+        let Some(pipeline) = &self.pipelines[self.variant.index()] else {
+            return;
+        };
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, scene_group, &[]);
         pass.set_bind_group(1, target_group, &[]);
         pass.dispatch_workgroups(
