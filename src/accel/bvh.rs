@@ -97,65 +97,38 @@ pub fn build(bounds: &[Aabb], max_leaf: usize) -> Bvh {
         let node_box = slice
             .iter()
             .fold(Aabb::EMPTY, |b, &i| b.grow(bounds[i as usize]));
-        let split = if count > max_leaf {
-            find_split(slice, bounds, &centres, node_box)
-        } else {
-            None
-        };
-        let leaf = |first: usize, count: usize| BvhNode {
-            bounds_min: node_box.min.to_array(),
-            left_or_first: first as u32,
-            bounds_max: node_box.max.to_array(),
-            count: count as u32,
-        };
-        let Some((axis, position)) = split else {
-            if count > max_leaf {
-                // Could not separate by centroid: split the list in half.
-                let half = count / 2;
-                push_children(
-                    &mut bvh,
-                    node,
-                    node_box,
-                    &mut work,
-                    (first, half),
-                    (first + half, count - half),
-                    depth,
-                );
-            } else {
-                bvh.nodes[node] = leaf(first, count);
-            }
+        if count <= max_leaf {
+            bvh.nodes[node] = BvhNode {
+                bounds_min: node_box.min.to_array(),
+                left_or_first: first as u32,
+                bounds_max: node_box.max.to_array(),
+                count: count as u32,
+            };
             continue;
-        };
-        // Partition items: centroid below the split plane first.
+        }
+        // Partition items: centroid below the SAH plane first.
         let mut left = 0;
-        for k in 0..count {
-            if centres[slice[k] as usize][axis] < position {
-                slice.swap(k, left);
-                left += 1;
+        if let Some((axis, position)) = find_split(slice, bounds, &centres, node_box) {
+            for k in 0..count {
+                if centres[slice[k] as usize][axis] < position {
+                    slice.swap(k, left);
+                    left += 1;
+                }
             }
         }
+        // No plane separates the centroids: split the list in half.
         if left == 0 || left == count {
-            let half = count / 2;
-            push_children(
-                &mut bvh,
-                node,
-                node_box,
-                &mut work,
-                (first, half),
-                (first + half, count - half),
-                depth,
-            );
-        } else {
-            push_children(
-                &mut bvh,
-                node,
-                node_box,
-                &mut work,
-                (first, left),
-                (first + left, count - left),
-                depth,
-            );
+            left = count / 2;
         }
+        push_children(
+            &mut bvh,
+            node,
+            node_box,
+            &mut work,
+            (first, left),
+            (first + left, count - left),
+            depth,
+        );
     }
     bvh
 }
