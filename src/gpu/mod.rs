@@ -29,4 +29,8 @@ pub enum GpuError {
         value: u64,
         limit: u64,
     },
+    /// A request no device can serve (an empty image, a BVH deeper than the
+    /// traversal stack), said in the message.
+    #[error("{0}")]
+    Unsupported(String),
 }

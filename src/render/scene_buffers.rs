@@ -302,11 +302,8 @@ impl SceneBuffers {
             binding_limit,
         )?;
 
-        let accel = SceneAccel::build(scene, &order).map_err(|e| GpuError::Limit {
-            what: e.to_string(),
-            value: 0,
-            limit: 0,
-        })?;
+        let accel =
+            SceneAccel::build(scene, &order).map_err(|e| GpuError::Unsupported(e.to_string()))?;
         let mut triangles = accel.triangles.clone();
         if triangles.is_empty() {
             triangles.push(bytemuck::Zeroable::zeroed());

@@ -60,11 +60,9 @@ impl Targets {
         let limits = gpu.device.limits();
         let max_dim = limits.max_texture_dimension_2d;
         if width == 0 || height == 0 {
-            return Err(GpuError::Limit {
-                what: "image size 0".into(),
-                value: 0,
-                limit: 0,
-            });
+            return Err(GpuError::Unsupported(format!(
+                "image size {width}x{height}: width and height must be at least 1"
+            )));
         }
         for (what, v) in [("image width", width), ("image height", height)] {
             if v > max_dim {
