@@ -205,19 +205,23 @@ impl Renderer {
     /// The camera of sample `k`: at its shutter time, on its lens point, with
     /// its jittered and sheared projection.
     pub fn sample_camera(&self, k: u32) -> camera::SampleCamera {
+        self.camera_for(&self.sample_schedule(k))
+    }
+
+    fn camera_for(&self, smp: &Sample) -> camera::SampleCamera {
         let s = &self.settings;
-        let smp = self.sample_schedule(k);
         let cam = self.scene.camera.at(smp.time);
-        let depth = camera::depth_range(&cam, self.scene.bounds());
+        let depth = camera::depth_range(&cam, self.buffers.world_bounds);
         camera::sample_camera(&cam, (s.width, s.height), smp.pixel_offset, smp.lens, depth)
     }
 
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
-        let offset = self.sample_schedule(k).pixel_offset;
-        let sc = self.sample_camera(k);
-        let (lo, hi) = self.scene.bounds();
+        let smp = self.sample_schedule(k);
+        let offset = smp.pixel_offset;
+        let sc = self.camera_for(&smp);
+        let (lo, hi) = self.buffers.world_bounds;
         let scene_radius = ((hi - lo).length() * 0.5).max(1e-3);
         // Inverted in f64: the projection's near/far ratio is large.
         let world_from_clip = sc.clip_from_world.as_dmat4().inverse().as_mat4();
@@ -264,12 +268,7 @@ impl Renderer {
         timestamps: Option<(&wgpu::QuerySet, u32)>,
     ) -> Result<(), GpuError> {
         let uniforms = self.frame_uniforms(self.samples);
-        if self
-            .scene
-            .instances
-            .iter()
-            .any(|i| i.world_from_object_end.is_some())
-        {
+        if self.buffers.has_motion {
             let time = self.sample_schedule(self.samples).time;
             self.buffers.write_instances_at(gpu, &self.scene, time);
         }

@@ -46,6 +46,11 @@ pub struct SceneBuffers {
     /// `instance_order[i]` is the scene instance drawn as GPU instance i.
     pub instance_order: Vec<usize>,
     pub triangle_count: u64,
+    /// World bounds of every instance, computed once at upload.
+    pub world_bounds: (glam::Vec3, glam::Vec3),
+    /// Whether any instance moves over the shutter (matrices then change
+    /// per sample).
+    pub has_motion: bool,
     /// The ray tracer's view of the scene (CPU copy kept for tests).
     pub accel: SceneAccel,
     pub shapes: wgpu::Buffer,
@@ -346,6 +351,11 @@ impl SceneBuffers {
             nodes: storage_buffer(gpu, "scene BVH nodes", &accel.nodes),
             triangles: storage_buffer(gpu, "scene triangles", &triangles),
             tlas_items: storage_buffer(gpu, "scene top-level items", &tlas_items),
+            world_bounds: scene.bounds(),
+            has_motion: scene
+                .instances
+                .iter()
+                .any(|i| i.world_from_object_end.is_some()),
             csg_ops: storage_buffer(gpu, "scene CSG programs", &csg_ops),
             csg_leaves: storage_buffer(gpu, "scene CSG leaves", &csg_leaves),
             accel,
