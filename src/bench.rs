@@ -3,6 +3,10 @@
 //! (../shared/bench/anchor-scenes.md). Timings live here, never in tests.
 
 mod csg;
+mod floor;
+mod report;
+
+use report::{md, Report};
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -32,6 +36,10 @@ pub struct BenchArgs {
     /// Folder holding FlightHelmet/FlightHelmet.gltf (the shared test models).
     #[arg(long, default_value = "../shared/models")]
     pub models: PathBuf,
+    /// One JSON object per line per case (case, ms, mrays_per_s,
+    /// floor_ratio, kernels, driver) instead of Markdown tables.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Wall milliseconds per frame (mean, median) and mean GPU ms per pass.
@@ -105,6 +113,12 @@ fn time_frames(
     })
 }
 
+impl FrameStats {
+    fn kernels(&self) -> Vec<(&str, f64)> {
+        self.passes.iter().map(|(n, ms)| (*n, *ms)).collect()
+    }
+}
+
 fn pass_ms(stats: &FrameStats, name: &str) -> f64 {
     stats
         .passes
@@ -169,45 +183,60 @@ fn triangles(scene: &Scene) -> usize {
         .sum()
 }
 
-fn raster_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Result<()> {
-    println!(
+fn raster_suite(
+    gpu: &Gpu,
+    args: &BenchArgs,
+    helmet: Option<&Scene>,
+    r: &Report,
+) -> anyhow::Result<()> {
+    md!(
+        r,
         "\n## Raster and hybrid frames ({}x{}, ms per frame)\n",
-        args.width, args.height
+        args.width,
+        args.height
     );
-    println!("| case | mode | frame ms (mean) | median | GPU raster | GPU trace | GPU accumulate | triangles |");
-    println!("|---|---|---|---|---|---|---|---|");
-    let row = |name: &str, scene: Scene, mode: RenderMode| -> anyhow::Result<()> {
-        let tris = triangles(&scene);
-        let s = time_frames(gpu, scene, mode, args)?;
-        let trace = if mode == RenderMode::Raster {
-            "-".to_string()
-        } else {
-            format!("{:.1}", pass_ms(&s, "trace"))
+    md!(r, "| case | mode | frame ms (mean) | median | GPU raster | GPU trace | GPU accumulate | triangles |");
+    md!(r, "|---|---|---|---|---|---|---|---|");
+    let row =
+        |name: &str, scene: Scene, mode: RenderMode, case: Option<&str>| -> anyhow::Result<()> {
+            let tris = triangles(&scene);
+            let s = time_frames(gpu, scene, mode, args)?;
+            if let Some(case) = case {
+                r.case(case, s.mean, None, &s.kernels());
+            }
+            let trace = if mode == RenderMode::Raster {
+                "-".to_string()
+            } else {
+                format!("{:.1}", pass_ms(&s, "trace"))
+            };
+            md!(
+                r,
+                "| {name} | {} | {:.1} | {:.1} | {:.1} | {trace} | {:.1} | {tris} |",
+                mode.name(),
+                s.mean,
+                s.median,
+                pass_ms(&s, "raster"),
+                pass_ms(&s, "accumulate")
+            );
+            Ok(())
         };
-        println!(
-            "| {name} | {} | {:.1} | {:.1} | {:.1} | {trace} | {:.1} | {tris} |",
-            mode.name(),
-            s.mean,
-            s.median,
-            pass_ms(&s, "raster"),
-            pass_ms(&s, "accumulate")
-        );
-        Ok(())
-    };
     for mode in RenderMode::ALL {
-        row("default scene", Scene::builtin_default(), mode)?;
+        let case = format!("default_{}", mode.name());
+        row("default scene", Scene::builtin_default(), mode, Some(&case))?;
     }
     if let Some(helmet) = helmet {
         row(
             "FlightHelmet, anchor camera",
             helmet.clone(),
             RenderMode::Raster,
+            Some("helmet_raster"),
         )?;
         for n in [1, 10, 100] {
             row(
                 &format!("FlightHelmet x{n}"),
                 grid(helmet, n, 1.2),
                 RenderMode::Raster,
+                None,
             )?;
         }
     }
@@ -217,7 +246,14 @@ fn raster_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::
 /// Closest-hit throughput of the primary rays of `scene`'s camera (one ray
 /// per pixel centre, by the ray-batch kernel), and the trace pass's time in
 /// raytrace mode (primary ray plus a shadow ray per lit hit).
-fn ray_row(gpu: &Gpu, name: &str, scene: Scene, args: &BenchArgs) -> anyhow::Result<()> {
+fn ray_row(
+    gpu: &Gpu,
+    name: &str,
+    case: &str,
+    scene: Scene,
+    args: &BenchArgs,
+    r: &Report,
+) -> anyhow::Result<()> {
     let (w, h) = (args.width, args.height);
     let settings = RenderSettings {
         width: w,
@@ -271,7 +307,14 @@ fn ray_row(gpu: &Gpu, name: &str, scene: Scene, args: &BenchArgs) -> anyhow::Res
         ));
     }
     let shadow_rays = hits; // one sun, one shadow ray per hit facing it (upper bound)
-    println!(
+    r.case(
+        case,
+        best * 1e3,
+        Some(rays.len() as f64 / best / 1e6),
+        &[("ray_batch", best * 1e3), ("trace", trace_ms)],
+    );
+    md!(
+        r,
         "| {name} | {} | {:.1}% | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
         scene.instances.len(),
         100.0 * hits as f64 / rays.len() as f64,
@@ -284,15 +327,31 @@ fn ray_row(gpu: &Gpu, name: &str, scene: Scene, args: &BenchArgs) -> anyhow::Res
     Ok(())
 }
 
-fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Result<()> {
-    println!(
+fn rays_suite(
+    gpu: &Gpu,
+    args: &BenchArgs,
+    helmet: Option<&Scene>,
+    r: &Report,
+) -> anyhow::Result<()> {
+    md!(
+        r,
         "\n## Ray throughput ({}x{}, one primary ray per pixel)\n",
-        args.width, args.height
+        args.width,
+        args.height
     );
-    println!("| scene | instances | rays hitting | closest-hit Mrays/s | trace pass ms (primary + shadow + shading) | primary+shadow Mrays/s | upload + BVH build ms | BVH + instance MiB |");
-    println!("|---|---|---|---|---|---|---|---|");
+    md!(r, "| scene | instances | rays hitting | closest-hit Mrays/s | trace pass ms (primary + shadow + shading) | primary+shadow Mrays/s | upload + BVH build ms | BVH + instance MiB |");
+    md!(r, "|---|---|---|---|---|---|---|---|");
     if let Some(helmet) = helmet {
-        ray_row(gpu, "FlightHelmet, anchor camera", helmet.clone(), args)?;
+        ray_row(
+            gpu,
+            "FlightHelmet, anchor camera",
+            "helmet_rays",
+            helmet.clone(),
+            args,
+            r,
+        )?;
+    } else {
+        r.skipped("helmet_rays", &missing_helmet(args));
     }
     let spot_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("assets/models/spot/spot_triangulated.obj");
@@ -301,7 +360,14 @@ fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Re
         "eye: (0.0, 1.0, 3.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0",
         args,
     )?;
-    ray_row(gpu, "spot x 10,000", grid(&spot, 10_000, 1.1), args)?;
+    ray_row(
+        gpu,
+        "spot x 10,000",
+        "spot_10000_rays",
+        grid(&spot, 10_000, 1.1),
+        args,
+        r,
+    )?;
     let ball = |n: usize| -> anyhow::Result<Scene> {
         let ron = format!(
             r#"(version: 1,
@@ -320,11 +386,24 @@ fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Re
             1.1,
         ))
     };
-    ray_row(gpu, "100 analytic spheres", ball(100)?, args)?;
+    ray_row(
+        gpu,
+        "100 analytic spheres",
+        "spheres_100_rays",
+        ball(100)?,
+        args,
+        r,
+    )?;
 
-    println!("\n## Instance scaling: n spheres on a grid filling the view, raytrace mode\n");
-    println!("| instances | trace pass ms | vs 1 instance | BVH + instance MiB |");
-    println!("|---|---|---|---|");
+    md!(
+        r,
+        "\n## Instance scaling: n spheres on a grid filling the view, raytrace mode\n"
+    );
+    md!(
+        r,
+        "| instances | trace pass ms | vs 1 instance | BVH + instance MiB |"
+    );
+    md!(r, "|---|---|---|---|");
     let mut first = None;
     for n in [1usize, 10, 100, 1_000, 10_000, 100_000] {
         let scene = ball(n)?;
@@ -339,7 +418,11 @@ fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Re
         )?;
         let trace = pass_ms(&s, "trace");
         let base = *first.get_or_insert(trace);
-        let r = Renderer::new(
+        if n == 1 {
+            r.case("one_sphere_raytrace", s.mean, None, &s.kernels());
+        }
+        r.case(&format!("instances_{n}"), s.mean, None, &s.kernels());
+        let small = Renderer::new(
             gpu,
             scene,
             RenderSettings {
@@ -348,9 +431,10 @@ fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Re
                 ..Default::default()
             },
         )?;
-        let a = &r.scene_buffers().accel;
+        let a = &small.scene_buffers().accel;
         let bytes = a.nodes.len() * 32 + a.triangles.len() * 96 + a.tlas_items.len() * 4 + n * 208;
-        println!(
+        md!(
+            r,
             "| {n} | {trace:.1} | {:.2}x | {:.2} |",
             trace / base,
             bytes as f64 / (1024.0 * 1024.0)
@@ -360,13 +444,15 @@ fn rays_suite(gpu: &Gpu, args: &BenchArgs, helmet: Option<&Scene>) -> anyhow::Re
 }
 
 /// Time per accumulated sample (all passes, hybrid mode) with each effect.
-fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
-    println!(
+fn effects_suite(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> {
+    md!(
+        r,
         "\n## Time per accumulated sample ({}x{}, hybrid mode)\n",
-        args.width, args.height
+        args.width,
+        args.height
     );
-    println!("| scene | effect | ms per sample (mean) | median | GPU raster | GPU trace | GPU accumulate |");
-    println!("|---|---|---|---|---|---|---|");
+    md!(r, "| scene | effect | ms per sample (mean) | median | GPU raster | GPU trace | GPU accumulate |");
+    md!(r, "|---|---|---|---|---|---|---|");
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
     let default = Scene::builtin_default();
     let mut dof = default.clone();
@@ -377,23 +463,42 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             Some(Mat4::from_translation(Vec3::new(0.6, 0.0, 0.0)) * inst.world_from_object);
     }
     let cases = [
-        ("default", "anti-aliasing only", default.clone()),
-        ("default", "+ depth of field (disk, r = 0.08)", dof),
-        ("default", "+ motion blur (one moving sphere)", motion),
+        (
+            "default",
+            "anti-aliasing only",
+            "effects_default",
+            default.clone(),
+        ),
+        (
+            "default",
+            "+ depth of field (disk, r = 0.08)",
+            "effects_dof",
+            dof,
+        ),
+        (
+            "default",
+            "+ motion blur (one moving sphere)",
+            "effects_motion",
+            motion,
+        ),
         (
             "mirrors.ron",
             "mirror + glossy reflections, shadows",
+            "mirrors",
             Scene::load(&dir.join("mirrors.ron"))?,
         ),
         (
             "anchor_dof_motion.ron",
             "depth of field + motion blur (anchor scene 2)",
+            "anchor_dof_motion",
             Scene::load(&dir.join("anchor_dof_motion.ron"))?,
         ),
     ];
-    for (name, effect, scene) in cases {
+    for (name, effect, case, scene) in cases {
         let st = time_frames(gpu, scene, RenderMode::Hybrid, args)?;
-        println!(
+        r.case(case, st.mean, None, &st.kernels());
+        md!(
+            r,
             "| {name} | {effect} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
             st.mean,
             st.median,
@@ -409,10 +514,13 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
 /// 1024-sample jittered reference, on the 1D zone plate of `celray
 /// experiment sampling` (256 x 256, raster mode): fine bars make the
 /// patterns differ, where a mostly flat toon scene passes at one sample.
-fn flip_convergence(gpu: &Gpu) -> anyhow::Result<()> {
-    println!("\n## Samples to reach FLIP mean 0.02 (1D zone plate, raster mode, 256x256, vs 1024 jittered samples)\n");
-    println!("| pattern | samples | seconds | FLIP mean at that count |");
-    println!("|---|---|---|---|");
+fn flip_convergence(gpu: &Gpu, r: &Report) -> anyhow::Result<()> {
+    md!(r, "\n## Samples to reach FLIP mean 0.02 (1D zone plate, raster mode, 256x256, vs 1024 jittered samples)\n");
+    md!(
+        r,
+        "| pattern | samples | seconds | FLIP mean at that count |"
+    );
+    md!(r, "|---|---|---|---|");
     let scene = crate::experiment::zone_plate_scene(256)?;
     let settings = |pattern, spp| RenderSettings {
         width: 256,
@@ -449,42 +557,86 @@ fn flip_convergence(gpu: &Gpu) -> anyhow::Result<()> {
         }
         match found {
             Some((spp, seconds, flip)) => {
-                println!("| {} | {spp} | {seconds:.2} | {flip:.4} |", pattern.name())
+                md!(
+                    r,
+                    "| {} | {spp} | {seconds:.2} | {flip:.4} |",
+                    pattern.name()
+                )
             }
-            None => println!("| {} | > 512 | - | - |", pattern.name()),
+            None => md!(r, "| {} | > 512 | - | - |", pattern.name()),
         }
     }
     Ok(())
 }
 
+fn missing_helmet(args: &BenchArgs) -> String {
+    format!(
+        "FlightHelmet not found at {} (pass --models DIR, the folder of the shared test models)",
+        args.models.join("FlightHelmet/FlightHelmet.gltf").display()
+    )
+}
+
+/// Times the floor kernel against 1 and 64 spheres and records floor_1 as
+/// the denominator of every floor_ratio of this run.
+fn floor_suite(gpu: &Gpu, args: &BenchArgs, r: &mut Report) -> anyhow::Result<()> {
+    md!(
+        r,
+        "\n## Floor kernel ({}x{}: primary + shadow ray per pixel, brute force against N spheres)\n",
+        args.width,
+        args.height
+    );
+    md!(r, "| case | GPU ms (median) |");
+    md!(r, "|---|---|");
+    for n in [1u32, 64] {
+        let ms = floor::floor_ms(gpu, args.width, args.height, n, args.frames)?;
+        if n == 1 {
+            r.floor_1 = Some(ms);
+        }
+        let case = format!("floor_{n}");
+        r.case(&case, ms, None, &[("floor", ms)]);
+        md!(r, "| {case} | {ms:.2} |");
+    }
+    Ok(())
+}
+
 pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
-    println!("adapter: {}", gpu.summary);
+    if args.frames == 0 {
+        anyhow::bail!("--frames must be at least 1 (frames timed per case)");
+    }
+    let mut report = Report {
+        json: args.json,
+        driver: format!("{} {}", gpu.summary.name, gpu.summary.driver),
+        floor_1: None,
+    };
+    md!(report, "adapter: {}", gpu.summary);
     let helmet_path = args.models.join("FlightHelmet/FlightHelmet.gltf");
     let helmet = if helmet_path.exists() {
         let camera = "eye: (0.60609, 0.74952, 1.58035), target: (-0.02035, 0.35799, 0.01424), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0";
         Some(mesh_scene(&helmet_path, camera, args)?)
     } else {
-        println!(
-            "FlightHelmet not found at {}: its cases are skipped (pass --models DIR, the folder of the shared test models)",
-            helmet_path.display()
-        );
+        md!(report, "{}: its cases are skipped", missing_helmet(args));
         None
     };
+    floor_suite(gpu, args, &mut report)?;
+    let r = &report;
     match args.suite.as_str() {
-        "raster" => raster_suite(gpu, args, helmet.as_ref()),
-        "rays" => rays_suite(gpu, args, helmet.as_ref()),
+        "floor" => Ok(()),
+        "raster" => raster_suite(gpu, args, helmet.as_ref(), r),
+        "rays" => rays_suite(gpu, args, helmet.as_ref(), r),
         "effects" => {
-            effects_suite(gpu, args)?;
-            flip_convergence(gpu)
+            effects_suite(gpu, args, r)?;
+            flip_convergence(gpu, r)
         }
-        "csg" => csg::csg_suite(gpu, args),
+        "csg" => csg::csg_suite(gpu, args, r),
         "all" => {
-            raster_suite(gpu, args, helmet.as_ref())?;
-            rays_suite(gpu, args, helmet.as_ref())?;
-            effects_suite(gpu, args)?;
-            flip_convergence(gpu)?;
-            csg::csg_suite(gpu, args)
+            raster_suite(gpu, args, helmet.as_ref(), r)?;
+            rays_suite(gpu, args, helmet.as_ref(), r)?;
+            effects_suite(gpu, args, r)?;
+            flip_convergence(gpu, r)?;
+            csg::csg_suite(gpu, args, r)
         }
-        other => anyhow::bail!("bench suite {other:?}: expected raster, rays, effects, csg or all"),
+        other => anyhow::bail!(
+            "bench suite {other:?}: expected floor, raster, rays, effects, csg or all"
+        ),
     }
 }

@@ -7,6 +7,7 @@ use std::path::Path;
 use celray::render::RenderMode;
 use celray::scene::{Scene, Shape};
 
+use super::report::{md, Report};
 use super::{pass_ms, time_frames, BenchArgs};
 use celray::gpu::Gpu;
 
@@ -80,14 +81,19 @@ fn leaves(scene: &Scene) -> (usize, u32) {
         .fold((0, 0), |(l, d), (l2, d2)| (l.max(l2), d.max(d2)))
 }
 
-pub fn csg_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
-    println!(
+pub fn csg_suite(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> {
+    md!(
+        r,
         "\n## CSG frames ({}x{}, hybrid mode, ms per frame)\n",
-        args.width, args.height
+        args.width,
+        args.height
     );
-    println!("| case | CSG instances | leaves | depth | frame ms (mean) | median | GPU trace |");
-    println!("|---|---|---|---|---|---|---|");
-    let row = |name: &str, mut scene: Scene| -> anyhow::Result<()> {
+    md!(
+        r,
+        "| case | CSG instances | leaves | depth | frame ms (mean) | median | GPU trace |"
+    );
+    md!(r, "|---|---|---|---|---|---|---|");
+    let row = |name: &str, case: Option<&str>, mut scene: Scene| -> anyhow::Result<()> {
         scene.camera.width = args.width;
         scene.camera.height = args.height;
         let csg_instances = scene
@@ -97,7 +103,11 @@ pub fn csg_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             .count();
         let (l, d) = leaves(&scene);
         let s = time_frames(gpu, scene, RenderMode::Hybrid, args)?;
-        println!(
+        if let Some(case) = case {
+            r.case(case, s.mean, None, &s.kernels());
+        }
+        md!(
+            r,
             "| {name} | {csg_instances} | {l} | {d} | {:.1} | {:.1} | {:.1} |",
             s.mean,
             s.median,
@@ -107,15 +117,18 @@ pub fn csg_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     };
     row(
         "reference: a plain box (not CSG)",
+        None,
         single("Box(half_extents: (0.8, 0.8, 0.8))", args)?,
     )?;
     let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
     row(
         "textbook solid (csg_textbook.ron: floor, mirror, shadows)",
+        Some("csg_textbook"),
         Scene::load(&scenes.join("csg_textbook.ron"))?,
     )?;
     row(
         "textbook solid alone",
+        None,
         single(
             "Difference(Intersection([Box(half_extents: (0.8, 0.8, 0.8)), Sphere(radius: 1.05)]), \
              Union([Cylinder(radius: 0.45, height: 2.0), \
@@ -126,21 +139,25 @@ pub fn csg_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     )?;
     row(
         "100-instance grid (csg_grid.ron)",
+        Some("csg_grid"),
         Scene::load(&scenes.join("csg_grid.ron"))?,
     )?;
     row(
         "six-level tree (csg_deep.ron)",
+        None,
         Scene::load(&scenes.join("csg_deep.ron"))?,
     )?;
     for n in [1, 2, 4, 8, 16, 32] {
         row(
             &format!("intersection of {n} boxes"),
+            None,
             single(&box_intersection(n), args)?,
         )?;
     }
     for depth in [2, 4, 8, 12] {
         row(
             &format!("chain {depth} levels deep"),
+            None,
             single(&chain(depth), args)?,
         )?;
     }

@@ -42,6 +42,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         "ray_batch.wgsl",
         include_str!("../../shaders/ray_batch.wgsl"),
     ),
+    (
+        "bench_floor.wgsl",
+        include_str!("../../shaders/bench_floor.wgsl"),
+    ),
 ];
 
 /// The pass files (those that are not include-only pieces).
