@@ -36,6 +36,15 @@ const MAX_INVOCATION_STEPS: u32 = 48000u;
 // The far-plane depth written where no surface is hit.
 const FAR_DEPTH: f32 = 65504.0;
 
+// What the scene and settings can reach, fixed per pipeline so that code no
+// pixel can need is not in the kernel at all (the CPU driver pays for code
+// that 8 neighbouring invocations might need, and Mesa 22.3 for all of it).
+// False only when it changes nothing: no light casts shadows; no material
+// reflects (or max_bounces is 0); no reflective material is rough.
+override SHADOWS_ENABLED: bool = true;
+override REFLECTIONS_ENABLED: bool = true;
+override GLOSSY_ENABLED: bool = true;
+
 // The normal facing the ray: two-sided surfaces are shaded on both sides.
 fn facing_normal(h: TraceHit, d: vec3<f32>) -> vec3<f32> {
     return select(h.normal, -h.normal, dot(h.geometric, d) > 0.0);
@@ -48,7 +57,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f
         let light = lights[i];
         let ls = sample_light(light, p);
         var visible = true;
-        if light.radiance.w > 0.0 && dot(n, ls.to_light) > 0.0 {
+        if SHADOWS_ENABLED && light.radiance.w > 0.0 && dot(n, ls.to_light) > 0.0 {
             let origin = p + n * frame.ray_epsilon;
             visible = trace(origin, ls.to_light, 0.0, ls.distance, false, true).instance == NO_HIT;
         }
@@ -68,7 +77,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f
 // Directions below the surface are drawn again (up to 8 tries, then the
 // mirror direction): rejection keeps the lobe's shape without darkening.
 fn glossy_direction(w: vec3<f32>, n: vec3<f32>, roughness: f32, pixel_key: u32, bounce: u32) -> vec3<f32> {
-    if roughness <= 0.0 {
+    if !GLOSSY_ENABLED || roughness <= 0.0 {
         return w;
     }
     let a = max(roughness, 1e-3);
@@ -147,7 +156,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let n = facing_normal(hit, d);
         let m = materials[hit.material];
         var reflectivity = m.reflectivity;
-        if bounce == frame.max_bounces {
+        if !REFLECTIONS_ENABLED || bounce == frame.max_bounces {
             reflectivity = 0.0;
         }
         colour += weight * (1.0 - reflectivity) * shade_hit(p, n, -d, m);

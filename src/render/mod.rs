@@ -89,8 +89,9 @@ impl Renderer {
 
     fn bind(&mut self, gpu: &Gpu) {
         self.raster.prepare(gpu, &self.frame, &self.buffers);
+        let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         self.trace
-            .prepare(gpu, &self.frame, &self.buffers, &self.targets);
+            .prepare(gpu, &self.frame, &self.buffers, &self.targets, variant);
         self.accumulate
             .prepare(gpu, &self.frame, &self.buffers, &self.targets);
         self.capture_resolve
@@ -164,6 +165,10 @@ impl Renderer {
                 .write_buffer(&self.buffers.lights, 0, bytemuck::cast_slice(&lights));
         }
         self.scene = scene;
+        // Edited materials or lights may need other code in the trace kernel
+        // (e.g. a first reflective material).
+        let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
+        self.trace.select_variant(gpu, variant);
         self.reset();
         Ok(())
     }

@@ -14,12 +14,14 @@ use crate::gpu::twins::TRACE_WORKGROUP;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::scene_buffers::SceneBuffers;
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
+use crate::render::RenderSettings;
+use crate::scene::{Light, Material, Scene};
 
 pub struct TracePass {
     /// Pipeline variants by [`Variant::index`], each built the first time a
     /// scene needs it: code a scene cannot reach (CSG, triangle meshes) is
     /// compiled out, which the CPU driver runs markedly faster.
-    pipelines: [Option<wgpu::ComputePipeline>; 4],
+    pipelines: std::collections::HashMap<Variant, wgpu::ComputePipeline>,
     variant: Variant,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
@@ -30,28 +32,44 @@ pub struct TracePass {
     stats: wgpu::Buffer,
 }
 
-/// Which optional code a scene needs in the trace kernel.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-struct Variant {
+/// Which optional code a scene and its settings need in the trace kernel.
+/// Each flag is false only where the code it guards could change no pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct Variant {
     csg: bool,
     meshes: bool,
+    shadows: bool,
+    reflections: bool,
+    glossy: bool,
 }
 
 impl Variant {
-    fn of(scene: &SceneBuffers) -> Variant {
+    pub fn of(scene: &Scene, buffers: &SceneBuffers, settings: &RenderSettings) -> Variant {
+        let reflective = |m: &&Material| m.reflectivity > 0.0;
+        let reflections =
+            settings.max_bounces > 0 && scene.materials.iter().any(|m| reflective(&m));
         Variant {
-            csg: !scene.accel.csg_ops.is_empty(),
-            meshes: !scene.accel.triangles.is_empty(),
+            csg: !buffers.accel.csg_ops.is_empty(),
+            meshes: !buffers.accel.triangles.is_empty(),
+            shadows: scene.lights.iter().any(|l| match l {
+                Light::Directional { cast_shadows, .. } | Light::Point { cast_shadows, .. } => {
+                    *cast_shadows
+                }
+            }),
+            reflections,
+            glossy: reflections
+                && scene
+                    .materials
+                    .iter()
+                    .filter(reflective)
+                    .any(|m| m.roughness > 0.0),
         }
-    }
-
-    fn index(self) -> usize {
-        usize::from(self.csg) + 2 * usize::from(self.meshes)
     }
 }
 
 /// The trace pipeline with only the code `variant` needs (overrides
-/// `CSG_ENABLED` and `MESHES_ENABLED`).
+/// `CSG_ENABLED`, `MESHES_ENABLED`, `SHADOWS_ENABLED`,
+/// `REFLECTIONS_ENABLED` and `GLOSSY_ENABLED`).
 fn trace_pipeline(
     gpu: &Gpu,
     layout: &wgpu::PipelineLayout,
@@ -68,6 +86,12 @@ fn trace_pipeline(
                 constants: &[
                     ("CSG_ENABLED", f64::from(u8::from(variant.csg))),
                     ("MESHES_ENABLED", f64::from(u8::from(variant.meshes))),
+                    ("SHADOWS_ENABLED", f64::from(u8::from(variant.shadows))),
+                    (
+                        "REFLECTIONS_ENABLED",
+                        f64::from(u8::from(variant.reflections)),
+                    ),
+                    ("GLOSSY_ENABLED", f64::from(u8::from(variant.glossy))),
                 ],
                 ..Default::default()
             },
@@ -129,7 +153,7 @@ impl TracePass {
                         | wgpu::BufferUsages::COPY_DST,
                 });
             TracePass {
-                pipelines: [None, None, None, None],
+                pipelines: std::collections::HashMap::new(),
                 variant: Variant::default(),
                 module,
                 pipeline_layout: layout,
@@ -141,23 +165,25 @@ impl TracePass {
         })
     }
 
+    /// Uses the pipeline for `variant`, building it now if this pass has
+    /// not yet (pipelines are cached: switching back costs nothing).
+    pub fn select_variant(&mut self, gpu: &Gpu, variant: Variant) {
+        self.variant = variant;
+        if !self.pipelines.contains_key(&variant) {
+            let pipeline = trace_pipeline(gpu, &self.pipeline_layout, &self.module, variant);
+            self.pipelines.insert(variant, pipeline);
+        }
+    }
+
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
         frame: &wgpu::Buffer,
         scene: &SceneBuffers,
         targets: &Targets,
+        variant: Variant,
     ) {
-        self.variant = Variant::of(scene);
-        let slot = &mut self.pipelines[self.variant.index()];
-        if slot.is_none() {
-            *slot = Some(trace_pipeline(
-                gpu,
-                &self.pipeline_layout,
-                &self.module,
-                self.variant,
-            ));
-        }
+        self.select_variant(gpu, variant);
         let buffers = [
             frame,
             &scene.instances,
@@ -214,7 +240,7 @@ impl TracePass {
             label: Some("trace pass"),
             timestamp_writes: timer.map(|t| t.compute_writes("trace")),
         });
-        let Some(pipeline) = &self.pipelines[self.variant.index()] else {
+        let Some(pipeline) = self.pipelines.get(&self.variant) else {
             return;
         };
         pass.set_pipeline(pipeline);
