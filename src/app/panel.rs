@@ -20,6 +20,8 @@ use crate::scene::{
 pub struct PanelInfo<'a> {
     pub adapter: &'a str,
     pub backend: &'a str,
+    /// The driver and its version (e.g. "llvmpipe Mesa 25.0.7 (LLVM 15.0.6)").
+    pub driver: &'a str,
     pub frame_ms: f64,
     /// Samples accumulated in each shown view.
     pub samples: Vec<u32>,
@@ -155,6 +157,7 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
     };
     let samples: Vec<String> = info.samples.iter().map(u32::to_string).collect();
     ui.label(format!("{} ({})", info.adapter, info.backend));
+    ui.label(format!("driver: {}", info.driver));
     ui.label(format!(
         "{:.1} ms  {:.0} fps  {} / {} spp",
         info.frame_ms,

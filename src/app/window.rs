@@ -817,6 +817,7 @@ impl Running {
         let info = PanelInfo {
             adapter: &self.gpu.summary.name,
             backend: &self.gpu.summary.backend,
+            driver: &self.gpu.summary.driver,
             frame_ms: self.stats.smoothed_ms,
             samples: self.samples_shown(),
             pass_times: self.timer.as_ref().and_then(|t| t.latest),
