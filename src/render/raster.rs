@@ -29,7 +29,7 @@ impl RasterPass {
                     entries: &[
                         uniform_entry(0, vf),
                         read_only_storage_entry(1, vf),
-                        read_only_storage_entry(2, wgpu::ShaderStages::FRAGMENT),
+                        read_only_storage_entry(2, wgpu::ShaderStages::VERTEX),
                         read_only_storage_entry(3, wgpu::ShaderStages::FRAGMENT),
                     ],
                 });
