@@ -27,6 +27,7 @@ const MAX_BENCH_FRAMES: u32 = 1000;
 
 /// Most frames `celray view --exit-after-frames` renders: about half an
 /// hour at 60 frames a second.
+#[cfg(feature = "app")]
 const MAX_EXIT_AFTER_FRAMES: u64 = 100_000;
 
 #[derive(Parser)]
