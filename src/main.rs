@@ -285,7 +285,7 @@ fn check_counts(width: u32, height: u32, spp: u32) -> Result<()> {
         bail!(
             "{width}x{height} pixels at {spp} spp is {total} samples, over celray's bound of \
              {MAX_IMAGE_SAMPLES} (2^37) samples per image, e.g. 1920x1080 at 65536 spp or \
-             3840x2160 at 16384 spp: lower --spp or the image size"
+             3840x2160 at 16384 spp: lower the sample count or the image size"
         );
     }
     Ok(())
@@ -325,6 +325,8 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Render(args) => render(args, &adapter_choice(&cli.adapter)),
         Command::Experiment(args) => {
+            // Its largest render is the 1024-sample reference.
+            check_counts(args.size, args.size, 1024)?;
             let gpu = Gpu::new_headless(&adapter_choice(&cli.adapter))?;
             experiment::run(&gpu, &args)
         }

@@ -116,6 +116,19 @@ fn counts_past_their_bounds_are_refused_naming_the_bound() {
             MAX_BOUNCES,
         ),
         case(&["compare", "-o", "x.png", "--spp", &over_spp], MAX_SPP),
+        // The sampling experiment's 1024-sample reference at a size whose
+        // square is just past the per-image bound.
+        case(
+            &[
+                "experiment",
+                "sampling",
+                "-o",
+                "x.png",
+                "--size",
+                &((MAX_IMAGE_SAMPLES / 1024).isqrt() + 1).to_string(),
+            ],
+            MAX_IMAGE_SAMPLES,
+        ),
         case(&["bench", "--frames", "0"], "1 to 1000"),
         case(&["bench", "--frames", "1001"], "1 to 1000"),
         case(&["bench", "--frames", "4294967295"], "1 to 1000"),
