@@ -2,6 +2,7 @@
 //! (linear HDR). No window, no event loop.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::gpu::{Gpu, GpuError};
 use crate::render::{RenderSettings, Renderer};
@@ -79,11 +80,44 @@ pub fn render_frame(
     want_linear: bool,
     progress: impl FnMut(u32, u32),
 ) -> Result<Frame, CaptureError> {
-    let mut renderer = Renderer::new(gpu, scene, settings.clone())?;
+    let mut renderer = Renderer::new(gpu, scene, settings)?;
     renderer.render_to_convergence(gpu, progress)?;
+    read_frame(gpu, &renderer, want_linear)
+}
+
+/// Renders like [`render_frame`], but waits for each sample before calling
+/// `progress(done, total)` (so that progress and timings are true), and
+/// stops between two samples once `stop` is set. Returns the image of the
+/// samples done with their count per pixel, or `None` when stopped before
+/// the first one.
+pub fn render_frame_until_stopped(
+    gpu: &Gpu,
+    scene: Scene,
+    settings: RenderSettings,
+    want_linear: bool,
+    mut progress: impl FnMut(u32, u32),
+    stop: &AtomicBool,
+) -> Result<Option<(Frame, u32)>, CaptureError> {
+    let mut renderer = Renderer::new(gpu, scene, settings)?;
+    while !renderer.converged() && !stop.load(Ordering::SeqCst) {
+        renderer.render_sample(gpu)?;
+        gpu.wait_idle()?;
+        progress(renderer.samples(), renderer.settings().spp);
+    }
+    if renderer.samples() == 0 {
+        return Ok(None);
+    }
+    Ok(Some((
+        read_frame(gpu, &renderer, want_linear)?,
+        renderer.samples(),
+    )))
+}
+
+/// The resolved image of what `renderer` has accumulated.
+fn read_frame(gpu: &Gpu, renderer: &Renderer, want_linear: bool) -> Result<Frame, CaptureError> {
     Ok(Frame {
-        width: settings.width,
-        height: settings.height,
+        width: renderer.settings().width,
+        height: renderer.settings().height,
         srgb8: renderer.read_srgb8(gpu)?,
         linear: if want_linear {
             Some(renderer.read_linear(gpu)?)

@@ -5,15 +5,30 @@ mod bench;
 mod experiment;
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 
 use celray::capture::{self, OutputFormat};
 use celray::gpu::{AdapterChoice, Gpu};
-use celray::render::{RenderMode, RenderSettings, ToneMap};
+use celray::render::{
+    RenderMode, RenderSettings, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP,
+};
 use celray::sampling::PixelPattern;
-use celray::scene::{parse_shading_model, Scene};
+use celray::scene::{parse_shading_model, Scene, MAX_IMAGE_SIZE};
+
+/// Most frames `celray bench --frames` times per case: the median of a
+/// thousand frames is as steady as it gets, and on the CPU driver a
+/// thousand frames of one case already take minutes.
+const MAX_BENCH_FRAMES: u32 = 1000;
+
+/// Most frames `celray view --exit-after-frames` renders: about half an
+/// hour at 60 frames a second.
+#[cfg(feature = "app")]
+const MAX_EXIT_AFTER_FRAMES: u64 = 100_000;
 
 #[derive(Parser)]
 #[command(
@@ -64,7 +79,8 @@ struct RenderArgs {
     /// Image height in pixels (default: the scene camera's).
     #[arg(long)]
     height: Option<u32>,
-    /// Samples per pixel to accumulate.
+    /// Samples per pixel to accumulate (1 to 65536; width x height x spp
+    /// at most 2^37). Ctrl+C stops early and writes the samples so far.
     #[arg(long, default_value_t = 16)]
     spp: u32,
     /// Seed of the sample pattern: same seed, same image.
@@ -79,7 +95,8 @@ struct RenderArgs {
     /// How primary visibility is found: raster, hybrid or raytrace.
     #[arg(long, default_value = "hybrid")]
     mode: String,
-    /// Mirror reflection bounces after the primary hit (hybrid, raytrace).
+    /// Mirror reflection bounces after the primary hit (hybrid, raytrace;
+    /// at most 16).
     #[arg(long, default_value_t = 3)]
     max_bounces: u32,
     /// Tone mapping: clamp or reinhard.
@@ -96,7 +113,7 @@ struct RenderArgs {
 /// Image settings shared by `compare` and `view`.
 #[derive(Args)]
 struct ImageArgs {
-    /// Samples per pixel to accumulate.
+    /// Samples per pixel to accumulate (1 to 65536).
     #[arg(long, default_value_t = 16)]
     spp: u32,
     /// Seed of the sample pattern: same seed, same image.
@@ -155,7 +172,7 @@ struct ViewArgs {
     /// Window height in logical pixels.
     #[arg(long, default_value_t = 720)]
     height: u32,
-    /// Sample target of the progressive display.
+    /// Sample target of the progressive display (1 to 65536).
     #[arg(long, default_value_t = 64)]
     spp: u32,
     /// Seed of the sample pattern.
@@ -173,7 +190,8 @@ struct ViewArgs {
     /// Start with uncapped frames (vsync off).
     #[arg(long)]
     no_vsync: bool,
-    /// Render this many frames, then exit (for tests and benchmarks).
+    /// Render this many frames (at most 100000), then exit (for tests and
+    /// benchmarks).
     #[arg(long, value_name = "N")]
     exit_after_frames: Option<u64>,
     /// With --exit-after-frames: save the window's content (panel
@@ -191,13 +209,86 @@ struct ViewArgs {
     no_watch: bool,
 }
 
+/// An interrupted render: said as is, exit status 130 (as for SIGINT).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+struct Interrupted(String);
+
 fn main() {
+    quiet_device_select_layer();
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let cli = Cli::parse();
     if let Err(e) = run(cli) {
+        if let Some(interrupted) = e.downcast_ref::<Interrupted>() {
+            eprintln!("{interrupted}");
+            std::process::exit(130);
+        }
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// Mesa's device-select Vulkan layer asks the Wayland compositor which GPU
+/// drives the display. Without a usable `XDG_RUNTIME_DIR` it cannot, and
+/// libwayland prints "error: XDG_RUNTIME_DIR is invalid or not set in the
+/// environment." (twice) although nothing failed. In exactly that case,
+/// and only when the user has set none of the layer's own variables
+/// (`NODEVICE_SELECT`, `MESA_VK_DEVICE_SELECT*`, `DRI_PRIME*`) and no X
+/// display could answer instead, this turns the layer off with its own
+/// switch (`NODEVICE_SELECT=1`) before any wgpu instance exists. celray
+/// picks its adapter itself (`--adapter`); no driver message is filtered.
+fn quiet_device_select_layer() {
+    // The user's own switches for the layer, or an X display it can ask.
+    let keep_layer = std::env::vars_os().any(|(name, value)| {
+        let name = name.to_string_lossy();
+        !value.is_empty()
+            && (name == "NODEVICE_SELECT"
+                || name == "DISPLAY"
+                || name.starts_with("MESA_VK_DEVICE_SELECT")
+                || name.starts_with("DRI_PRIME"))
+    });
+    let absolute = |name: &str| std::env::var_os(name).is_some_and(|v| Path::new(&v).is_absolute());
+    // libwayland needs an absolute XDG_RUNTIME_DIR unless it is handed a
+    // socket or the socket is named by an absolute path.
+    let wayland_reachable = absolute("XDG_RUNTIME_DIR")
+        || absolute("WAYLAND_DISPLAY")
+        || std::env::var_os("WAYLAND_SOCKET").is_some();
+    if !keep_layer && !wayland_reachable {
+        // Single-threaded here: main() calls this first.
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
+}
+
+/// Refuses an image size or sample count past celray's bounds, naming the
+/// bound.
+fn check_counts(width: u32, height: u32, spp: u32) -> Result<()> {
+    if width == 0 || height == 0 {
+        bail!("image size {width}x{height} is empty: width and height must be at least 1");
+    }
+    for (what, size) in [("width", width), ("height", height)] {
+        if size > MAX_IMAGE_SIZE {
+            bail!("image {what} {size} is over celray's bound of {MAX_IMAGE_SIZE} pixels");
+        }
+    }
+    if spp == 0 {
+        bail!("--spp 0: at least one sample per pixel is needed");
+    }
+    if spp > MAX_SPP {
+        bail!(
+            "--spp {spp} is over celray's bound of {MAX_SPP} samples per pixel: there the \
+             noise left is under one 8-bit level, and the float accumulator keeps only about \
+             8 bits of each further sample"
+        );
+    }
+    let total = u64::from(width) * u64::from(height) * u64::from(spp);
+    if total > MAX_IMAGE_SAMPLES {
+        bail!(
+            "{width}x{height} pixels at {spp} spp is {total} samples, over celray's bound of \
+             {MAX_IMAGE_SAMPLES} (2^37) samples per image, e.g. 1920x1080 at 65536 spp or \
+             3840x2160 at 16384 spp: lower the sample count or the image size"
+        );
+    }
+    Ok(())
 }
 
 fn adapter_choice(flag: &Option<String>) -> AdapterChoice {
@@ -234,10 +325,19 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Render(args) => render(args, &adapter_choice(&cli.adapter)),
         Command::Experiment(args) => {
+            // Its largest render is the 1024-sample reference.
+            check_counts(args.size, args.size, 1024)?;
             let gpu = Gpu::new_headless(&adapter_choice(&cli.adapter))?;
             experiment::run(&gpu, &args)
         }
         Command::Bench(args) => {
+            if !(1..=MAX_BENCH_FRAMES).contains(&args.frames) {
+                bail!(
+                    "--frames {}: the benchmark times 1 to {MAX_BENCH_FRAMES} frames per case",
+                    args.frames
+                );
+            }
+            check_counts(args.width, args.height, 1)?;
             let gpu = Gpu::new_headless(&adapter_choice(&cli.adapter))?;
             bench::run(&gpu, &args)
         }
@@ -274,15 +374,12 @@ fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
     let mut settings = RenderSettings::for_camera(&scene.camera);
     settings.width = args.width.unwrap_or(settings.width);
     settings.height = args.height.unwrap_or(settings.height);
-    if settings.width == 0 || settings.height == 0 {
+    check_counts(settings.width, settings.height, args.spp)?;
+    if args.max_bounces > MAX_BOUNCES {
         bail!(
-            "image size {}x{} is empty: width and height must be at least 1",
-            settings.width,
-            settings.height
+            "--max-bounces {} is over celray's bound of {MAX_BOUNCES} bounces",
+            args.max_bounces
         );
-    }
-    if args.spp == 0 {
-        bail!("--spp 0: at least one sample per pixel is needed");
     }
     settings.spp = args.spp;
     settings.seed = args.seed;
@@ -302,6 +399,17 @@ fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
     settings.tone_map = ToneMap::parse(&args.tone_map)
         .with_context(|| format!("--tone-map {:?}: expected clamp or reinhard", args.tone_map))?;
 
+    // Ctrl+C stops between two samples and writes what is there; a second
+    // Ctrl+C ends the process at once.
+    let stop = Arc::new(AtomicBool::new(false));
+    let handler_stop = Arc::clone(&stop);
+    ctrlc::set_handler(move || {
+        if handler_stop.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    })
+    .context("cannot install the Ctrl+C handler")?;
+
     let gpu = Gpu::new_headless(adapter)?;
     let bar = if args.quiet || settings.spp < 2 {
         indicatif::ProgressBar::hidden()
@@ -309,22 +417,49 @@ fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
         let bar = indicatif::ProgressBar::new(u64::from(settings.spp));
         bar.set_style(
             indicatif::ProgressStyle::with_template(
-                "{msg} [{bar:30}] {pos}/{len} samples {elapsed}",
+                "{msg} [{bar:30}] {pos}/{len} samples {elapsed}, about {eta} left",
             )
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         bar.set_message("rendering");
         bar
     };
-    let frame = capture::render_frame(
+    let mut estimate = EtaNote::new(!args.quiet);
+    let spp = settings.spp;
+    let rendered = capture::render_frame_until_stopped(
         &gpu,
         scene,
         settings,
         format == OutputFormat::Exr,
-        |done, _| bar.set_position(u64::from(done)),
+        |done, total| {
+            bar.set_position(u64::from(done));
+            if let Some(line) = estimate.after_sample(done, total) {
+                if bar.is_hidden() {
+                    eprintln!("{line}");
+                } else {
+                    bar.println(line);
+                }
+            }
+        },
+        &stop,
     )?;
     bar.finish_and_clear();
+    let Some((frame, samples)) = rendered else {
+        return Err(Interrupted(
+            "interrupted before the first sample: nothing written".to_string(),
+        )
+        .into());
+    };
     capture::save(&frame, &args.output)?;
+    if samples < spp {
+        return Err(Interrupted(format!(
+            "interrupted after {samples} of {spp} samples: wrote {} ({}x{}, {samples} spp)",
+            args.output.display(),
+            frame.width,
+            frame.height,
+        ))
+        .into());
+    }
     if !args.quiet {
         eprintln!(
             "wrote {} ({}x{}, {})",
@@ -335,6 +470,57 @@ fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The one-line time estimate `render` prints once the first samples are
+/// timed, for renders that will take a while.
+struct EtaNote {
+    /// Whether to say anything at all (not with --quiet).
+    enabled: bool,
+    /// When the first sample finished (it includes one-time start-up work,
+    /// so the rate is measured from there).
+    first_done: Option<Instant>,
+}
+
+impl EtaNote {
+    /// Renders shorter than this get no note.
+    const WORTH_SAYING: Duration = Duration::from_secs(10);
+    /// Samples are timed for at least this long before estimating.
+    const MEASURE: Duration = Duration::from_millis(500);
+
+    fn new(enabled: bool) -> EtaNote {
+        EtaNote {
+            enabled,
+            first_done: None,
+        }
+    }
+
+    /// Called after sample `done` of `total`; returns the note once.
+    fn after_sample(&mut self, done: u32, total: u32) -> Option<String> {
+        if !self.enabled || done >= total {
+            return None;
+        }
+        let Some(first) = self.first_done else {
+            self.first_done = Some(Instant::now());
+            return None;
+        };
+        let measured = first.elapsed();
+        if done < 2 || measured < Self::MEASURE {
+            return None;
+        }
+        self.enabled = false;
+        let per_sample = measured / (done - 1);
+        let left = per_sample
+            .checked_mul(total - done)
+            .unwrap_or(Duration::MAX);
+        (left >= Self::WORTH_SAYING).then(|| {
+            format!(
+                "{total} samples at {:.1} ms each: about {} left (Ctrl+C stops and writes the image so far)",
+                per_sample.as_secs_f64() * 1e3,
+                indicatif::HumanDuration(left)
+            )
+        })
+    }
 }
 
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -364,12 +550,7 @@ fn image_settings(
     pattern: &str,
     tone_map: &str,
 ) -> Result<RenderSettings> {
-    if width == 0 || height == 0 {
-        bail!("image size {width}x{height} is empty: width and height must be at least 1");
-    }
-    if spp == 0 {
-        bail!("--spp 0: at least one sample per pixel is needed");
-    }
+    check_counts(width, height, spp)?;
     Ok(RenderSettings {
         width,
         height,
@@ -451,8 +632,10 @@ fn view(args: ViewArgs, adapter: &AdapterChoice) -> Result<()> {
             .with_context(|| format!("--layout {text:?}: expected single, split, wipe or grid"))?,
         None => Layout::for_count(views.len()),
     };
-    if args.exit_after_frames == Some(0) {
-        bail!("--exit-after-frames 0: at least one frame is needed");
+    if let Some(n) = args.exit_after_frames {
+        if !(1..=MAX_EXIT_AFTER_FRAMES).contains(&n) {
+            bail!("--exit-after-frames {n}: give 1 to {MAX_EXIT_AFTER_FRAMES} frames");
+        }
     }
     if let Some(path) = &args.screenshot {
         if OutputFormat::from_path(path)? != OutputFormat::Png {
@@ -530,4 +713,31 @@ fn view(args: ViewArgs, adapter: &AdapterChoice) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_at_their_bounds_pass_and_one_past_is_refused() {
+        assert!(check_counts(1, 1, MAX_SPP).is_ok());
+        assert!(check_counts(1, 1, MAX_SPP + 1).is_err());
+        assert!(check_counts(MAX_IMAGE_SIZE, 1, 1).is_ok());
+        assert!(check_counts(MAX_IMAGE_SIZE + 1, 1, 1).is_err());
+        assert!(check_counts(1, MAX_IMAGE_SIZE + 1, 1).is_err());
+        // The per-image bound: exactly 2^37 samples pass, more do not; the
+        // examples in the message pass.
+        assert!(check_counts(8192, 8192, 2048).is_ok()); // 2^13 * 2^13 * 2^11
+        assert!(check_counts(8192, 8192, 2049).is_err());
+        assert!(check_counts(1920, 1080, MAX_SPP).is_ok());
+        let most_4k = (MAX_IMAGE_SAMPLES / (3840 * 2160)) as u32;
+        assert!(most_4k >= 16384);
+        assert!(check_counts(3840, 2160, most_4k).is_ok());
+        assert!(check_counts(3840, 2160, most_4k + 1).is_err());
+        assert!(check_counts(0, 1, 1).is_err());
+        assert!(check_counts(1, 1, 0).is_err());
+        // Extreme values are refused, not overflowed.
+        assert!(check_counts(u32::MAX, u32::MAX, u32::MAX).is_err());
+    }
 }

@@ -10,7 +10,7 @@ use super::layout::Layout;
 use super::model::Model;
 use super::timing::PassTimes;
 use crate::compare::ViewSpec;
-use crate::render::{RenderMode, ToneMap};
+use crate::render::{RenderMode, ToneMap, MAX_BOUNCES, MAX_SPP};
 use crate::sampling::PixelPattern;
 use crate::scene::{
     ApertureShape, Light, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
@@ -250,11 +250,11 @@ fn settings_ui(ui: &mut Ui, model: &mut Model) {
     enum_combo(ui, "mode", &mut s.mode, &RenderMode::ALL, RenderMode::name);
     ui.horizontal(|ui| {
         ui.label("reflection bounces");
-        ui.add(egui::DragValue::new(&mut s.max_bounces).range(0..=16));
+        ui.add(egui::DragValue::new(&mut s.max_bounces).range(0..=MAX_BOUNCES));
     });
     ui.horizontal(|ui| {
         ui.label("sample target");
-        ui.add(egui::DragValue::new(&mut s.spp).range(1..=65536));
+        ui.add(egui::DragValue::new(&mut s.spp).range(1..=MAX_SPP));
     });
     enum_combo(
         ui,

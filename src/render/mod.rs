@@ -29,7 +29,7 @@ use accumulate::AccumulatePass;
 use raster::RasterPass;
 use resolve::ResolvePass;
 use scene_buffers::SceneBuffers;
-pub use settings::{RenderMode, RenderSettings, ToneMap};
+pub use settings::{RenderMode, RenderSettings, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP};
 use targets::Targets;
 use trace::TracePass;
 

@@ -65,6 +65,23 @@ impl RenderMode {
     }
 }
 
+/// Most samples per pixel celray accumulates (`--spp`, the app's sample
+/// target): there the noise left in a pixel whose samples spread over the
+/// whole display range is under one 8-bit level (1/sqrt(2^16) = 1/256), and
+/// the f32 accumulator, whose sum has then reached 2^16 sample values, keeps
+/// only about 8 bits of each further sample.
+pub const MAX_SPP: u32 = 1 << 16;
+
+/// Most samples in one image, width x height x spp: 2^37, which is
+/// 1920x1080 at [`MAX_SPP`] or 3840x2160 at 16,384 spp. It refuses a
+/// mistyped count before hours of work rather than anything the GPU cannot
+/// do.
+pub const MAX_IMAGE_SAMPLES: u64 = 1 << 37;
+
+/// Most mirror/glossy bounces after the primary hit (`--max-bounces`, the
+/// app's slider): past a few bounces a reflection adds nothing visible.
+pub const MAX_BOUNCES: u32 = 16;
+
 /// Everything about how a scene is rendered that is not the scene itself.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderSettings {

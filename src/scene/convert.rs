@@ -8,7 +8,7 @@ use glam::Mat4;
 
 use super::file::{
     ron_options, ApertureFile, CameraFile, CsgFile, LightFile, MaterialFile, ModelFile, PlaneFile,
-    SceneFile, ShapeFile, TransformFile, VersionProbe, SCENE_FORMAT_VERSION,
+    SceneFile, ShapeFile, TransformFile, VersionProbe, MAX_NESTING, SCENE_FORMAT_VERSION,
 };
 use super::{
     ApertureShape, Camera, Csg, CsgLeaf, CsgNode, Instance, Light, Material, Mesh, PlaneKind, Rim,
@@ -35,7 +35,14 @@ pub(crate) fn scene_from_str(
             file: file_name.to_string(),
             line: position.line,
             col: position.col,
-            message: e.code.to_string(),
+            message: match e.code {
+                // ron's own text advises whoever builds celray.
+                ron::Error::ExceededRecursionLimit => format!(
+                    "nested too deeply: brackets and parentheses may nest at most \
+                     {MAX_NESTING} levels in a scene file, and this file goes deeper here"
+                ),
+                code => code.to_string(),
+            },
         }
     };
 

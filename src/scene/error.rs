@@ -8,12 +8,10 @@ use std::path::PathBuf;
 /// so that it can be shown to the user as is.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    /// The scene file could not be read.
-    #[error("cannot read scene file {}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    /// The scene file could not be read. The reason is part of the
+    /// message (not a `source`), so a printed error chain says it once.
+    #[error("cannot read scene file {}: {reason}", path.display())]
+    Io { path: PathBuf, reason: String },
 
     /// The file is not valid RON, or does not have the shape of a scene
     /// file (unknown field, wrong type, missing field, ...).

@@ -16,9 +16,16 @@ use serde::Deserialize;
 /// The scene format version this build reads.
 pub const SCENE_FORMAT_VERSION: u32 = 1;
 
+/// How deep brackets and parentheses may nest in a scene file (and a
+/// `--set` value): a guard against running out of stack on a hostile file,
+/// far above what any scene needs (a CSG tree level costs two).
+pub const MAX_NESTING: usize = 128;
+
 /// RON options used for scene files and `--set` values.
 pub(crate) fn ron_options() -> ron::Options {
-    ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+    ron::Options::default()
+        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+        .with_recursion_limit(MAX_NESTING)
 }
 
 /// Reads only `version`, ignoring everything else, so that a file of a

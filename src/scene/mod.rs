@@ -109,7 +109,7 @@ pub use csg::{
     closed_mesh, Csg, CsgLeaf, CsgNode, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK,
 };
 pub use error::SceneError;
-pub use file::{DEFAULT_AMBIENT, DEFAULT_BACKGROUND, SCENE_FORMAT_VERSION};
+pub use file::{DEFAULT_AMBIENT, DEFAULT_BACKGROUND, MAX_NESTING, SCENE_FORMAT_VERSION};
 pub use material::{
     parse_shading_model, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
 };
@@ -282,9 +282,13 @@ impl Scene {
     /// Reads and validates a scene file. Mesh paths are relative to the
     /// file's directory. Never writes anything.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        let src = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
             path: path.to_path_buf(),
-            source,
+            reason: if path.is_dir() {
+                "it is a folder; give the path of a .ron scene file".to_string()
+            } else {
+                e.to_string()
+            },
         })?;
         let base_dir = match path.parent() {
             Some(dir) if !dir.as_os_str().is_empty() => dir,
