@@ -32,6 +32,9 @@ pub struct BenchArgs {
     /// Folder holding FlightHelmet/FlightHelmet.gltf (the shared test models).
     #[arg(long, default_value = "../shared/models")]
     pub models: PathBuf,
+    /// The global `--accel` (set by main): what the frame cases walk.
+    #[arg(skip)]
+    pub accel: celray::render::AccelChoice,
 }
 
 /// Wall milliseconds per frame (mean, median) and mean GPU ms per pass.
@@ -54,6 +57,7 @@ fn time_frames(
         height: args.height,
         spp: 1 << 20,
         mode,
+        accel: args.accel,
         ..RenderSettings::default()
     };
     let mut renderer = Renderer::new(gpu, scene, settings)?;

@@ -9,9 +9,11 @@ use crate::gpu::layout::{
     buffer_entries, read_only_storage_entry, read_write_storage_entry, storage_texture_entry,
     texture_entry, uniform_entry,
 };
+use crate::gpu::shader::Traversal;
 use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::TRACE_WORKGROUP;
 use crate::gpu::{readback, shader, Gpu, GpuError};
+use crate::render::driver_accel::{self, DriverAccel};
 use crate::render::scene_buffers::SceneBuffers;
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 
@@ -28,6 +30,19 @@ pub struct TracePass {
     bind_groups: Option<(wgpu::BindGroup, wgpu::BindGroup)>,
     /// Counters the shader bumps: [0] = pixels that ran out of traversal steps.
     stats: wgpu::Buffer,
+    /// The driver variant (wgpu ray queries), built the first time a scene
+    /// is traced through the driver's structures; `Some` group 2 while the
+    /// current scene is.
+    driver: Option<DriverVariant>,
+    driver_group: Option<wgpu::BindGroup>,
+}
+
+/// The trace pass composed with `lib/trace_rq.wgsl`: its own module, so the
+/// software pipelines carry none of it.
+struct DriverVariant {
+    module: wgpu::ShaderModule,
+    layout: wgpu::BindGroupLayout,
+    pipelines: [Option<wgpu::ComputePipeline>; 4],
 }
 
 /// Which optional code a scene needs in the trace kernel.
@@ -137,26 +152,65 @@ impl TracePass {
                 target_layout,
                 bind_groups: None,
                 stats,
+                driver: None,
+                driver_group: None,
             }
         })
     }
 
+    /// Binds `scene` and `targets`; with `driver`, the pass traces through
+    /// the driver's structures (the driver variant), else celray's BVH.
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
         frame: &wgpu::Buffer,
         scene: &SceneBuffers,
         targets: &Targets,
-    ) {
+        driver: Option<&DriverAccel>,
+    ) -> Result<(), GpuError> {
         self.variant = Variant::of(scene);
-        let slot = &mut self.pipelines[self.variant.index()];
-        if slot.is_none() {
-            *slot = Some(trace_pipeline(
-                gpu,
-                &self.pipeline_layout,
-                &self.module,
-                self.variant,
-            ));
+        self.driver_group = None;
+        if let Some(accel) = driver {
+            if self.driver.is_none() {
+                let module = shader::create_module_variant(gpu, "trace.wgsl", Traversal::Driver)?;
+                let layout = gpu.scoped(|| driver_accel::bind_group_layout(gpu))?;
+                self.driver = Some(DriverVariant {
+                    module,
+                    layout,
+                    pipelines: [None, None, None, None],
+                });
+            }
+            if let Some(v) = self.driver.as_mut() {
+                let slot = &mut v.pipelines[self.variant.index()];
+                if slot.is_none() {
+                    let variant = self.variant;
+                    let layouts = [&self.scene_layout, &self.target_layout];
+                    *slot = Some(gpu.scoped(|| {
+                        driver_accel::pipeline(
+                            gpu,
+                            "trace pipeline (driver ray queries)",
+                            &v.module,
+                            &layouts,
+                            &v.layout,
+                            &[
+                                ("CSG_ENABLED", f64::from(u8::from(variant.csg))),
+                                ("MESHES_ENABLED", f64::from(u8::from(variant.meshes))),
+                            ],
+                        )
+                    })?);
+                }
+                self.driver_group = Some(accel.bind_group(gpu, &v.layout));
+            }
+        } else {
+            let slot = &mut self.pipelines[self.variant.index()];
+            if slot.is_none() {
+                *slot = Some(trace_pipeline(
+                    gpu,
+                    &self.pipeline_layout,
+                    &self.module,
+                    self.variant,
+                ));
+            }
         }
         let buffers = [
             frame,
@@ -199,6 +253,12 @@ impl TracePass {
             entries: &entries,
         });
         self.bind_groups = Some((scene_group, target_group));
+        Ok(())
+    }
+
+    /// Whether the pass traces through the driver's structures.
+    pub fn uses_driver(&self) -> bool {
+        self.driver_group.is_some()
     }
 
     pub fn encode(
@@ -214,12 +274,19 @@ impl TracePass {
             label: Some("trace pass"),
             timestamp_writes: timer.map(|t| t.compute_writes("trace")),
         });
-        let Some(pipeline) = &self.pipelines[self.variant.index()] else {
+        let pipeline = match (&self.driver_group, &self.driver) {
+            (Some(_), Some(v)) => &v.pipelines[self.variant.index()],
+            _ => &self.pipelines[self.variant.index()],
+        };
+        let Some(pipeline) = pipeline else {
             return;
         };
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, scene_group, &[]);
         pass.set_bind_group(1, target_group, &[]);
+        if let Some(group) = &self.driver_group {
+            pass.set_bind_group(2, group, &[]);
+        }
         pass.dispatch_workgroups(
             targets.width.div_ceil(TRACE_WORKGROUP),
             targets.height.div_ceil(TRACE_WORKGROUP),
