@@ -195,6 +195,7 @@ fn assert_same_image(gpu: &Gpu, name: &str, scene: &Scene, mode: RenderMode, siz
     assert_eq!(used_sw, "software");
     assert_eq!(used_drv, "driver", "{name}: the driver path was not taken");
     let flip = celray::compare::flip_mean(&software, &driver);
+    eprintln!("{name}: FLIP mean software vs driver {flip:.5}");
     if flip > 0.01 {
         let dir = manifest_dir().join("target/driver_accel");
         let _ = std::fs::create_dir_all(&dir);
@@ -226,4 +227,107 @@ fn driver_matches_software_on_every_shipped_scene() {
         count += 1;
     }
     assert!(count >= 7, "only {count} shipped scenes found");
+}
+
+/// A scene with a sun, a floor and `body` (RON shape and instance entries).
+fn effect_scene(camera_extra: &str, materials: &str, shapes: &str, instances: &str) -> Scene {
+    let ron = format!(
+        r#"(version: 1,
+            camera: (eye: (0.0, 2.5, 6.0), target: (0.0, 0.5, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 64, height: 36{camera_extra}),
+            lights: [Directional(direction: (-0.4, -1.0, -0.3), color: (1.0, 1.0, 1.0), intensity: 1.0),
+                     Point(position: (2.0, 3.0, 2.0), color: (1.0, 0.9, 0.8), intensity: 4.0)],
+            materials: {{ "floor": (base_color: (0.7, 0.7, 0.7), model: Toon(bands: 3)),
+                          "m": (base_color: (0.8, 0.3, 0.2), model: BlinnPhong, shininess: 32.0),
+                          "bore": (base_color: (0.2, 0.3, 0.8), model: Toon(bands: 4)),
+                          {materials} }},
+            shapes: {{ "floor": Plane(Quad(half_size: (8.0, 8.0))),
+                       "cow": Mesh(path: "assets/models/spot/spot_triangulated.obj"),
+                       "ball": Sphere(radius: 0.5),
+                       {shapes} }},
+            instances: [(shape: "floor", material: "floor"), {instances}],
+        )"#
+    );
+    Scene::from_ron_str(&ron, "effects.ron", manifest_dir()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The image tests' subjects (instancing, CSG, shadows, reflections, depth
+/// of field, motion blur) in raytrace mode, where every ray walks the
+/// chosen structure: software and driver give the same image.
+#[test]
+fn driver_matches_software_on_effect_scenes() {
+    let Some(gpu) = driver_gpu("driver_matches_software_on_effect_scenes") else {
+        return;
+    };
+    let mut instanced = String::new();
+    for i in 0..60u32 {
+        let r = |k: u32| uniform(i, 5, k);
+        let shape = ["cow", "ball"][i as usize % 2];
+        // Sheared, non-uniformly scaled and mirrored instances.
+        let sx = if r(6) < 0.3 { -1.0 } else { 1.0 };
+        instanced += &format!(
+            "(shape: \"{shape}\", material: \"m\", transform: Matrix((({:.3}, {:.3}, 0.0, {:.3}), (0.0, {:.3}, 0.0, {:.3}), (0.0, 0.0, {:.3}, {:.3}), (0.0, 0.0, 0.0, 1.0)))),\n",
+            sx * (0.3 + r(0) * 0.3), r(1) * 0.3, r(2) * 6.0 - 3.0,
+            0.3 + r(3) * 0.3, 0.3 + r(4) * 1.5,
+            0.3 + r(5) * 0.3, r(7) * 4.0 - 3.0,
+        );
+    }
+    let cases: Vec<(&str, Scene)> = vec![
+        ("instancing", effect_scene("", "", "", &instanced)),
+        (
+            "csg",
+            effect_scene(
+                "",
+                "",
+                r#""carved": Difference(Box(half_extents: (0.8, 0.8, 0.8)), Union([
+                        Cylinder(radius: 0.4, height: 2.0, material: "bore"),
+                        Mesh(path: "assets/models/spot/spot_triangulated.obj", transform: (translate: (0.0, 0.5, 0.6)), material: "bore")]))"#,
+                r#"(shape: "carved", material: "m", transform: (translate: (0.0, 0.8, 0.0), rotate_deg: (20.0, 30.0, 0.0)))"#,
+            ),
+        ),
+        (
+            "shadow",
+            effect_scene(
+                "",
+                "",
+                "",
+                r#"(shape: "ball", material: "m", transform: (translate: (0.0, 1.2, 0.0))),
+                   (shape: "cow", material: "m", transform: (translate: (1.5, 0.7, 0.0)))"#,
+            ),
+        ),
+        (
+            "reflection",
+            effect_scene(
+                "",
+                r#""mirror": (base_color: (0.9, 0.9, 0.9), model: BlinnPhong, reflectivity: 0.9),
+                   "glossy": (base_color: (0.9, 0.9, 0.9), model: BlinnPhong, reflectivity: 0.7, roughness: 0.2)"#,
+                "",
+                r#"(shape: "ball", material: "mirror", transform: (translate: (-0.7, 0.5, 0.0))),
+                   (shape: "ball", material: "glossy", transform: (translate: (0.7, 0.5, 0.0))),
+                   (shape: "cow", material: "m", transform: (translate: (0.0, 0.7, -1.5)))"#,
+            ),
+        ),
+        (
+            "dof",
+            effect_scene(
+                ", aperture_radius: 0.15, focus_distance: Some(6.0)",
+                "",
+                "",
+                r#"(shape: "ball", material: "m", transform: (translate: (0.0, 0.5, 0.0))),
+                   (shape: "cow", material: "m", transform: (translate: (1.2, 0.7, -3.0)))"#,
+            ),
+        ),
+        (
+            "motion",
+            effect_scene(
+                ", shutter_open_s: 0.0, shutter_close_s: 0.02",
+                "",
+                "",
+                r#"(shape: "ball", material: "m", transform: (translate: (-1.0, 0.5, 0.0)), transform_end: (translate: (0.0, 0.5, 0.0))),
+                   (shape: "cow", material: "m", transform: (translate: (1.0, 0.7, 0.0)), transform_end: (translate: (1.3, 0.9, 0.0), rotate_deg: (0.0, 60.0, 0.0)))"#,
+            ),
+        ),
+    ];
+    for (name, scene) in &cases {
+        assert_same_image(&gpu, name, scene, RenderMode::Raytrace, (64, 36));
+    }
 }
