@@ -2,6 +2,7 @@
 //! chosen, on the scenes other renderers were timed on
 //! (../shared/bench/anchor-scenes.md). Timings live here, never in tests.
 
+mod accel;
 mod csg;
 
 use std::path::PathBuf;
@@ -17,7 +18,8 @@ use celray::scene::{Instance, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
-    /// Which cases: raster, rays, effects, csg or all.
+    /// Which cases: raster, rays, effects, csg, accel (driver ray queries
+    /// vs the software BVH) or all.
     #[arg(default_value = "all")]
     pub suite: String,
     /// Frames timed per case (after 3 warm-up frames).
@@ -482,13 +484,17 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             flip_convergence(gpu)
         }
         "csg" => csg::csg_suite(gpu, args),
+        "accel" => accel::accel_suite(gpu, args, helmet.as_ref()),
         "all" => {
             raster_suite(gpu, args, helmet.as_ref())?;
             rays_suite(gpu, args, helmet.as_ref())?;
             effects_suite(gpu, args)?;
             flip_convergence(gpu)?;
-            csg::csg_suite(gpu, args)
+            csg::csg_suite(gpu, args)?;
+            accel::accel_suite(gpu, args, helmet.as_ref())
         }
-        other => anyhow::bail!("bench suite {other:?}: expected raster, rays, effects, csg or all"),
+        other => anyhow::bail!(
+            "bench suite {other:?}: expected raster, rays, effects, csg, accel or all"
+        ),
     }
 }

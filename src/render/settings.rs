@@ -100,10 +100,12 @@ impl AccelChoice {
     }
 
     /// Whether `auto` takes the driver path on adapters of this type (given
-    /// ray queries). Only where it measured faster than the software path
-    /// (`celray bench rays`, README "Driver ray queries"): on lavapipe
-    /// (Mesa 25.0.7, 2 cores) it did not, so CPU adapters stay on software;
-    /// no other adapter type has been measured yet, so they do too.
+    /// ray queries): only where it measured faster than the software path
+    /// (`celray bench accel`, README "Driver ray queries"). On lavapipe
+    /// (Mesa 25.0.7, 2 cores) it did not (0.6x the software closest-hit
+    /// rate on FlightHelmet and 100 spheres, 1.0x on spot x 10,000; the trace
+    /// pass 1.2-1.7x slower), so CPU adapters stay on software; no other
+    /// adapter type has been measured yet, so they do too.
     pub fn driver_preferred(_device_type: wgpu::DeviceType) -> bool {
         false
     }
