@@ -331,3 +331,69 @@ fn driver_matches_software_on_effect_scenes() {
         assert_same_image(&gpu, name, scene, RenderMode::Raytrace, (64, 36));
     }
 }
+
+fn celray_cli(args: &[&str], cwd: &std::path::Path) -> std::process::Output {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_celray"));
+    cmd.args(args).current_dir(cwd);
+    if std::env::var_os("CELRAY_ADAPTER").is_none() {
+        cmd.env("CELRAY_ADAPTER", "software");
+    }
+    cmd.output().expect("run celray")
+}
+
+/// `celray adapters` says the CPU adapter has ray queries; `--accel driver`
+/// renders without a notice; a scene the driver path cannot serve (no
+/// instances: no top level to build) falls back with a one-line notice and
+/// gives the software path's bytes.
+#[test]
+fn cli_reports_ray_queries_and_falls_back_with_a_notice() {
+    let Some(_gpu) = driver_gpu("cli_reports_ray_queries_and_falls_back_with_a_notice") else {
+        return;
+    };
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("driver_cli");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let o = celray_cli(&["adapters"], &dir);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.lines()
+            .any(|l| l.contains("Cpu") && l.contains("ray queries: yes")),
+        "{out}"
+    );
+    let small = ["--width", "48", "--height", "27", "--spp", "2", "--quiet"];
+    let o = celray_cli(
+        &[&["--accel", "driver", "render", "-o", "d.png"][..], &small].concat(),
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("not used"), "unexpected notice: {err}");
+
+    std::fs::write(
+        dir.join("empty.ron"),
+        r#"(version: 1, camera: (eye: (0.0, 0.0, 3.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 48, height: 27),
+            materials: { "m": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) }, shapes: { "ball": Sphere(radius: 1.0) }, instances: [])"#,
+    )
+    .unwrap();
+    let run = |accel: &str, out: &str| {
+        celray_cli(
+            &[
+                &["--accel", accel, "render", "empty.ron", "-o", out][..],
+                &small,
+            ]
+            .concat(),
+            &dir,
+        )
+    };
+    let driver = run("driver", "empty_driver.png");
+    let err = String::from_utf8_lossy(&driver.stderr);
+    assert!(driver.status.success(), "{err}");
+    let notices: Vec<&str> = err.lines().filter(|l| l.contains("not used")).collect();
+    assert_eq!(notices.len(), 1, "one notice line expected: {err}");
+    assert!(notices[0].contains("no instances") && notices[0].contains("software BVH"));
+    assert!(run("software", "empty_software.png").status.success());
+    assert_eq!(
+        std::fs::read(dir.join("empty_driver.png")).unwrap(),
+        std::fs::read(dir.join("empty_software.png")).unwrap()
+    );
+}
