@@ -397,3 +397,67 @@ fn cli_reports_ray_queries_and_falls_back_with_a_notice() {
         std::fs::read(dir.join("empty_software.png")).unwrap()
     );
 }
+
+/// 10,000 FlightHelmet instances between mirror walls, 8 bounces, raytrace
+/// mode (tests/raytrace.rs's deep scene): lavapipe's ray-query traversal
+/// runs its own loops, which celray's step budget cannot count, so a
+/// truncated driver traversal would show only in the image. One sample per
+/// pixel centre through each path: the same image (FLIP mean <= 0.01), no
+/// pixel over celray's budget.
+#[test]
+fn driver_deep_scene_matches_software() {
+    let Some(gpu) = driver_gpu("driver_deep_scene_matches_software") else {
+        return;
+    };
+    let ron = r#"(version: 1,
+        camera: (eye: (-0.5, 2.0, -0.5), target: (10.0, 0.0, 10.0), up: (0.0, 1.0, 0.0), fov_y_deg: 50.0, width: 64, height: 48),
+        lights: [Directional(direction: (-0.3, -1.0, -0.4), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: {
+            "helmet": (base_color: (0.7, 0.6, 0.5), model: Toon(bands: 3), reflectivity: 0.3),
+            "mirror": (base_color: (0.1, 0.1, 0.1), model: BlinnPhong, reflectivity: 0.9),
+        },
+        shapes: { "helmet": Mesh(path: "assets/models/FlightHelmet/FlightHelmet.gltf"), "wall": Plane(Quad(half_size: (60.0, 60.0))) },
+        instances: [
+            (shape: "wall", material: "mirror"),
+            (shape: "wall", material: "mirror", transform: (translate: (0.0, 0.0, -1.0), rotate_deg: (90.0, 0.0, 0.0))),
+            (shape: "wall", material: "mirror", transform: (translate: (0.0, 0.0, 40.0), rotate_deg: (-90.0, 0.0, 0.0))),
+        ],
+    )"#;
+    let mut scene = Scene::from_ron_str(ron, "deep.ron", manifest_dir()).unwrap();
+    for i in 0..10_000 {
+        let (gx, gz) = ((i % 100) as f32, (i / 100) as f32);
+        scene.instances.push(celray::scene::Instance {
+            shape: 0,
+            material: 0,
+            world_from_object: glam::Mat4::from_translation(Vec3::new(gx * 0.4, 0.0, gz * 0.4))
+                * glam::Mat4::from_scale(Vec3::splat(0.6)),
+            world_from_object_end: None,
+        });
+    }
+    let frame = |accel: AccelChoice| {
+        let settings = RenderSettings {
+            max_bounces: 8,
+            mode: RenderMode::Raytrace,
+            accel,
+            ..pixel_centre_settings(&scene)
+        };
+        let r = rendered(&gpu, scene.clone(), settings);
+        assert_eq!(r.overflow_pixels(&gpu).unwrap(), 0, "{accel:?}: truncated");
+        let used = r.accel_in_use();
+        (
+            Frame {
+                width: 64,
+                height: 48,
+                srgb8: r.read_srgb8(&gpu).unwrap(),
+                linear: None,
+            },
+            used,
+        )
+    };
+    let (software, _) = frame(AccelChoice::Software);
+    let (driver, used) = frame(AccelChoice::Driver);
+    assert_eq!(used, "driver");
+    let flip = celray::compare::flip_mean(&software, &driver);
+    eprintln!("deep scene: FLIP mean software vs driver {flip:.5}");
+    assert!(flip <= 0.01, "deep scene: FLIP mean {flip:.4}");
+}
