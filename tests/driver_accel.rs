@@ -461,3 +461,45 @@ fn driver_deep_scene_matches_software() {
     eprintln!("deep scene: FLIP mean software vs driver {flip:.5}");
     assert!(flip <= 0.01, "deep scene: FLIP mean {flip:.4}");
 }
+
+/// A driver variant that does not build (here: a broken
+/// lib/trace_rq.wgsl read from disk, as hot reload would) falls back to the
+/// software BVH with a one-line notice instead of failing or drawing a
+/// wrong image: the frame is the software path's, byte for byte.
+#[test]
+fn driver_pipeline_failure_falls_back_to_software() {
+    let Some(gpu) = driver_gpu("driver_pipeline_failure_falls_back_to_software") else {
+        return;
+    };
+    let scene = Scene::load(&manifest_dir().join("assets/scenes/default.ron")).unwrap();
+    let (want, _) = render_with(
+        &gpu,
+        &scene,
+        RenderMode::Hybrid,
+        AccelChoice::Software,
+        (48, 27),
+    );
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("broken_rq_shaders");
+    std::fs::create_dir_all(dir.join("lib")).unwrap();
+    std::fs::write(dir.join("lib/trace_rq.wgsl"), "fn trace( this is not WGSL").unwrap();
+    gpu.set_shader_overrides(Some(
+        celray::gpu::shader::ShaderOverrides::read_dir(&dir).unwrap(),
+    ));
+    let settings = RenderSettings {
+        width: 48,
+        height: 27,
+        spp: 16,
+        seed: 7,
+        accel: AccelChoice::Driver,
+        ..RenderSettings::default()
+    };
+    let mut r = Renderer::new(&gpu, scene, settings).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(r.accel_in_use(), "software");
+    let notice = r.accel_notice().expect("a notice").to_string();
+    assert!(
+        !notice.contains('\n') && notice.contains("pipeline failed"),
+        "{notice}"
+    );
+    r.render_to_convergence(&gpu, |_, _| {}).unwrap();
+    assert_eq!(r.read_srgb8(&gpu).unwrap(), want.srgb8);
+}

@@ -131,13 +131,30 @@ impl Renderer {
 
     fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
         self.raster.prepare(gpu, &self.frame, &self.buffers);
-        self.trace.prepare(
+        let traced = self.trace.prepare(
             gpu,
             &self.frame,
             &self.buffers,
             &self.targets,
             self.driver.as_ref(),
-        )?;
+        );
+        if let Err(e) = traced {
+            // A driver variant that does not build (its shader or pipeline)
+            // falls back to the software BVH with the notice; the software
+            // variant failing is an error as before.
+            if self.driver.take().is_none() {
+                return Err(e);
+            }
+            let words: Vec<String> = e.to_string().split_whitespace().map(String::from).collect();
+            let notice = format!(
+                "driver ray queries not used: the driver trace pipeline failed: {}; tracing with the software BVH",
+                words.join(" ")
+            );
+            log::warn!("{notice}");
+            self.accel_notice = Some(notice);
+            self.trace
+                .prepare(gpu, &self.frame, &self.buffers, &self.targets, None)?;
+        }
         self.accumulate
             .prepare(gpu, &self.frame, &self.buffers, &self.targets);
         self.capture_resolve
