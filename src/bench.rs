@@ -2,6 +2,7 @@
 //! chosen, on the scenes other renderers were timed on
 //! (../shared/bench/anchor-scenes.md). Timings live here, never in tests.
 
+mod accel;
 mod csg;
 mod floor;
 mod report;
@@ -21,7 +22,8 @@ use celray::scene::{Instance, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
-    /// Which cases: raster, rays, effects, csg or all.
+    /// Which cases: raster, rays, effects, csg, accel (driver ray queries
+    /// vs the software BVH) or all.
     #[arg(default_value = "all")]
     pub suite: String,
     /// Frames timed per case (after 3 warm-up frames).
@@ -40,6 +42,9 @@ pub struct BenchArgs {
     /// floor_ratio, kernels, driver) instead of Markdown tables.
     #[arg(long)]
     pub json: bool,
+    /// The global `--accel` (set by main): what the frame cases walk.
+    #[arg(skip)]
+    pub accel: celray::render::AccelChoice,
 }
 
 /// Wall milliseconds per frame (mean, median) and mean GPU ms per pass.
@@ -62,6 +67,7 @@ fn time_frames(
         height: args.height,
         spp: 1 << 20,
         mode,
+        accel: args.accel,
         ..RenderSettings::default()
     };
     let mut renderer = Renderer::new(gpu, scene, settings)?;
@@ -628,15 +634,17 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             flip_convergence(gpu, r)
         }
         "csg" => csg::csg_suite(gpu, args, r),
+        "accel" => accel::accel_suite(gpu, args, helmet.as_ref(), r),
         "all" => {
             raster_suite(gpu, args, helmet.as_ref(), r)?;
             rays_suite(gpu, args, helmet.as_ref(), r)?;
             effects_suite(gpu, args, r)?;
             flip_convergence(gpu, r)?;
-            csg::csg_suite(gpu, args, r)
+            csg::csg_suite(gpu, args, r)?;
+            accel::accel_suite(gpu, args, helmet.as_ref(), r)
         }
         other => anyhow::bail!(
-            "bench suite {other:?}: expected floor, raster, rays, effects, csg or all"
+            "bench suite {other:?}: expected floor, raster, rays, effects, csg, accel or all"
         ),
     }
 }

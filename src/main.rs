@@ -15,7 +15,7 @@ use clap::{Args, Parser, Subcommand};
 use celray::capture::{self, OutputFormat};
 use celray::gpu::{AdapterChoice, Gpu};
 use celray::render::{
-    RenderMode, RenderSettings, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP,
+    AccelChoice, RenderMode, RenderSettings, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP,
 };
 use celray::sampling::PixelPattern;
 use celray::scene::{parse_shading_model, Scene, MAX_IMAGE_SIZE};
@@ -41,6 +41,12 @@ struct Cli {
     /// adapter's name. Default: $CELRAY_ADAPTER, else auto.
     #[arg(long, global = true)]
     adapter: Option<String>,
+    /// Acceleration structure rays walk: auto, software (celray's own BVH)
+    /// or driver (the driver's, through ray queries; falls back to software
+    /// with a notice where it cannot run). Used by render, compare, view and
+    /// bench.
+    #[arg(long, global = true, default_value = "auto")]
+    accel: String,
     /// Without a command: `view` on the built-in default scene.
     #[command(subcommand)]
     command: Option<Command>,
@@ -298,32 +304,42 @@ fn adapter_choice(flag: &Option<String>) -> AdapterChoice {
 }
 
 fn run(cli: Cli) -> Result<()> {
+    let accel = AccelChoice::parse(&cli.accel)
+        .with_context(|| format!("--accel {:?}: expected auto, software or driver", cli.accel))?;
     let Some(command) = cli.command else {
         #[cfg(feature = "app")]
         {
             let Some(Command::View(args)) = Cli::try_parse_from(["celray", "view"])?.command else {
                 bail!("internal: no default view arguments");
             };
-            return view(args, &adapter_choice(&cli.adapter));
+            return view(args, &adapter_choice(&cli.adapter), accel);
         }
         #[cfg(not(feature = "app"))]
         bail!("this build has no window (built without the `app` feature); try `celray render --help`");
     };
     match command {
         #[cfg(feature = "app")]
-        Command::View(args) => view(args, &adapter_choice(&cli.adapter)),
-        Command::Compare(args) => compare(args, &adapter_choice(&cli.adapter)),
+        Command::View(args) => view(args, &adapter_choice(&cli.adapter), accel),
+        Command::Compare(args) => compare(args, &adapter_choice(&cli.adapter), accel),
         Command::Adapters => {
             let adapters = celray::gpu::list_adapters();
             if adapters.is_empty() {
                 bail!("no adapters found; install lavapipe with `sudo apt-get install -y mesa-vulkan-drivers libvulkan1`");
             }
             for a in adapters {
-                println!("{}\t{}\t{}\t{}", a.name, a.backend, a.device_type, a.driver);
+                let rq = if a.ray_queries {
+                    "ray queries: yes"
+                } else {
+                    "ray queries: no"
+                };
+                println!(
+                    "{}\t{}\t{}\t{}\t{rq}",
+                    a.name, a.backend, a.device_type, a.driver
+                );
             }
             Ok(())
         }
-        Command::Render(args) => render(args, &adapter_choice(&cli.adapter)),
+        Command::Render(args) => render(args, &adapter_choice(&cli.adapter), accel),
         Command::Experiment(args) => {
             // Its largest render is the 1024-sample reference.
             check_counts(args.size, args.size, 1024)?;
@@ -339,7 +355,7 @@ fn run(cli: Cli) -> Result<()> {
             }
             check_counts(args.width, args.height, 1)?;
             let gpu = Gpu::new_headless(&adapter_choice(&cli.adapter))?;
-            bench::run(&gpu, &args)
+            bench::run(&gpu, &bench::BenchArgs { accel, ..args })
         }
     }
 }
@@ -351,7 +367,7 @@ fn load_scene(path: Option<&Path>) -> Result<Scene> {
     })
 }
 
-fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
+fn render(args: RenderArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<()> {
     let format = OutputFormat::from_path(&args.output)?;
     if let Some(scene_path) = &args.scene {
         if same_file(scene_path, &args.output) {
@@ -396,6 +412,7 @@ fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
         )
     })?;
     settings.max_bounces = args.max_bounces;
+    settings.accel = accel;
     settings.tone_map = ToneMap::parse(&args.tone_map)
         .with_context(|| format!("--tone-map {:?}: expected clamp or reinhard", args.tone_map))?;
 
@@ -565,7 +582,7 @@ fn image_settings(
     })
 }
 
-fn compare(args: CompareArgs, adapter: &AdapterChoice) -> Result<()> {
+fn compare(args: CompareArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<()> {
     use celray::compare::{Comparison, ViewSpec};
     if OutputFormat::from_path(&args.output)? != OutputFormat::Png {
         bail!(
@@ -593,6 +610,7 @@ fn compare(args: CompareArgs, adapter: &AdapterChoice) -> Result<()> {
         &i.pattern,
         &i.tone_map,
     )?;
+    let settings = RenderSettings { accel, ..settings };
     let gpu = Gpu::new_headless(adapter)?;
     let comparison = Comparison::run(&gpu, &scene, &settings, views, |_, _, _| {})?;
     comparison
@@ -617,7 +635,7 @@ fn compare(args: CompareArgs, adapter: &AdapterChoice) -> Result<()> {
 }
 
 #[cfg(feature = "app")]
-fn view(args: ViewArgs, adapter: &AdapterChoice) -> Result<()> {
+fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<()> {
     use celray::app::{self, Layout, ViewOptions};
     use celray::compare::ViewSpec;
     let views = ViewSpec::parse_list(&args.views)?;
@@ -661,6 +679,7 @@ fn view(args: ViewArgs, adapter: &AdapterChoice) -> Result<()> {
         &args.pattern,
         &args.tone_map,
     )?;
+    let settings = RenderSettings { accel, ..settings };
     let report_times = args.report_frame_times;
     let report = app::run(ViewOptions {
         scene,

@@ -147,6 +147,10 @@ fn bad_input_gives_clear_errors() {
             &["render", "-o", "x.png", "--adapter", "no-such-gpu-xyz"],
             "no-such-gpu-xyz",
         ),
+        (
+            &["render", "-o", "x.png", "--accel", "warp"],
+            "auto, software or driver",
+        ),
     ];
     for (args, needle) in cases {
         let o = celray(args, &dir);

@@ -278,3 +278,32 @@ fn include_expander_includes_each_piece_once() {
     assert!(!src.contains("#include"));
     assert!(compose("no-such-pass.wgsl").is_err());
 }
+
+/// The driver variants (lib/trace_rq.wgsl in place of lib/trace_bvh.wgsl)
+/// of the passes that trace rays validate too, and only they carry ray
+/// queries: the software kernels do not pay for them.
+#[test]
+fn driver_variants_validate_and_software_has_no_ray_queries() {
+    use celray::gpu::shader::{compose_variant, Traversal};
+    for name in ["trace.wgsl", "ray_batch.wgsl"] {
+        let src = compose_variant(name, Traversal::Driver).unwrap_or_else(|e| panic!("{e}"));
+        assert!(src.starts_with("enable wgpu_ray_query;"), "{name}");
+        assert!(src.contains("rayQueryProceed"), "{name}");
+        let module = naga::front::wgsl::parse_str(&src)
+            .unwrap_or_else(|e| panic!("{name} (driver):\n{}", e.emit_to_string(&src)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name} (driver) fails validation: {e:?}"));
+        let software = compose(name).unwrap();
+        assert!(
+            !software.contains("rayQuery") && !software.contains("acceleration_structure"),
+            "{name}: the software variant carries ray-query code"
+        );
+        // Both define the one `trace` the pass calls.
+        assert_eq!(src.matches("fn trace(").count(), 1, "{name} (driver)");
+        assert_eq!(software.matches("fn trace(").count(), 1, "{name}");
+    }
+}

@@ -10,7 +10,7 @@ use super::layout::Layout;
 use super::model::Model;
 use super::timing::PassTimes;
 use crate::compare::ViewSpec;
-use crate::render::{RenderMode, ToneMap, MAX_BOUNCES, MAX_SPP};
+use crate::render::{AccelChoice, RenderMode, ToneMap, MAX_BOUNCES, MAX_SPP};
 use crate::sampling::PixelPattern;
 use crate::scene::{
     ApertureShape, Light, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
@@ -29,6 +29,9 @@ pub struct PanelInfo<'a> {
     /// False when the adapter has no timestamp queries.
     pub has_timer: bool,
     pub shader_dir: Option<String>,
+    /// What rays walk in the first shown view ("driver" or "software"), and
+    /// why the driver path is not used where it was asked for.
+    pub accel: Option<(&'static str, Option<String>)>,
 }
 
 /// A combo box over `options`, named by `name`: one line per enum field.
@@ -188,6 +191,12 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
         .map(|p| p.display().to_string())
         .unwrap_or_else(|| "built-in default scene".into());
     ui.label(RichText::new(format!("scene: {file}")).small());
+    if let Some((used, notice)) = &info.accel {
+        ui.label(RichText::new(format!("rays walk: {used} structures")).small());
+        if let Some(n) = notice {
+            ui.label(RichText::new(n).small().color(Color32::YELLOW));
+        }
+    }
     if let Some(dir) = &info.shader_dir {
         ui.label(RichText::new(format!("shaders: {dir} (watched)")).small());
     }
@@ -248,6 +257,13 @@ fn views_ui(ui: &mut Ui, model: &mut Model) {
 fn settings_ui(ui: &mut Ui, model: &mut Model) {
     let s = &mut model.settings;
     enum_combo(ui, "mode", &mut s.mode, &RenderMode::ALL, RenderMode::name);
+    enum_combo(
+        ui,
+        "ray accel",
+        &mut s.accel,
+        &AccelChoice::ALL,
+        AccelChoice::name,
+    );
     ui.horizontal(|ui| {
         ui.label("reflection bounces");
         ui.add(egui::DragValue::new(&mut s.max_bounces).range(0..=MAX_BOUNCES));

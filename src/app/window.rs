@@ -823,6 +823,11 @@ impl Running {
             pass_times: self.timer.as_ref().and_then(|t| t.latest),
             has_timer: self.timer.is_some(),
             shader_dir: self.shader_dir.as_ref().map(|d| d.display().to_string()),
+            accel: self
+                .slots
+                .iter()
+                .find_map(|s| s.renderer.as_ref())
+                .map(|(r, _)| (r.accel_in_use(), r.accel_notice().map(str::to_string))),
         };
         let textures: Vec<Option<egui::TextureId>> = self.slots.iter().map(|s| s.tex_id).collect();
         let raw = self.egui_state.take_egui_input(&self.window);

@@ -42,11 +42,24 @@ pub struct AdapterSummary {
     pub backend: String,
     pub device_type: String,
     pub driver: String,
+    /// Whether the adapter offers wgpu's ray queries
+    /// (`Features::EXPERIMENTAL_RAY_QUERY`): the driver acceleration path.
+    pub ray_queries: bool,
 }
 
 impl AdapterSummary {
+    fn from_adapter(adapter: &wgpu::Adapter) -> AdapterSummary {
+        AdapterSummary {
+            ray_queries: adapter
+                .features()
+                .contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY),
+            ..AdapterSummary::from_info(&adapter.get_info())
+        }
+    }
+
     fn from_info(info: &wgpu::AdapterInfo) -> AdapterSummary {
         AdapterSummary {
+            ray_queries: false,
             name: info.name.clone(),
             backend: format!("{:?}", info.backend),
             device_type: format!("{:?}", info.device_type),
@@ -92,7 +105,7 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
     let instance = new_instance();
     pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
         .iter()
-        .map(|a| AdapterSummary::from_info(&a.get_info()))
+        .map(AdapterSummary::from_adapter)
         .collect()
 }
 
@@ -172,15 +185,29 @@ impl Gpu {
 
     /// A device on a given adapter (the window code picks one that can present).
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
-        let summary = AdapterSummary::from_info(&adapter.get_info());
-        let wanted =
-            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+        let summary = AdapterSummary::from_adapter(&adapter);
+        // Ray queries serve the driver acceleration path (render/driver_accel.rs);
+        // they are requested wherever offered, so either path can be chosen
+        // later on one device. They need the experimental-features token and
+        // the adapter's own limits (the minimum acceleration-structure limits
+        // ask more primitives than lavapipe has).
+        let wanted = wgpu::Features::TIMESTAMP_QUERY
+            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
+            | wgpu::Features::EXPERIMENTAL_RAY_QUERY;
         let required_features = adapter.features() & wanted;
+        let experimental_features =
+            if required_features.contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY) {
+                // SAFETY: the token only acknowledges that wgpu's ray-query API
+                // is experimental; celray uses it through the safe API alone.
+                unsafe { wgpu::ExperimentalFeatures::enabled() }
+            } else {
+                wgpu::ExperimentalFeatures::disabled()
+            };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("celray device"),
             required_features,
             required_limits: adapter.limits(),
-            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            experimental_features,
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
         }))
@@ -203,6 +230,14 @@ impl Gpu {
             uncaptured,
             shader_overrides: Mutex::new(None),
         })
+    }
+
+    /// Whether this device has wgpu's ray queries enabled (the driver
+    /// acceleration path can run).
+    pub fn has_ray_queries(&self) -> bool {
+        self.device
+            .features()
+            .contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY)
     }
 
     /// Makes passes created from now on use `overrides` (shader files read

@@ -26,6 +26,14 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         "lib/traverse.wgsl",
         include_str!("../../shaders/lib/traverse.wgsl"),
     ),
+    (
+        "lib/trace_bvh.wgsl",
+        include_str!("../../shaders/lib/trace_bvh.wgsl"),
+    ),
+    (
+        "lib/trace_rq.wgsl",
+        include_str!("../../shaders/lib/trace_rq.wgsl"),
+    ),
     ("lib/csg.wgsl", include_str!("../../shaders/lib/csg.wgsl")),
     (
         "lib/random.wgsl",
@@ -101,22 +109,56 @@ impl ShaderOverrides {
     }
 }
 
+/// How a pass that traces rays walks the scene: which file serves
+/// `lib/trace_bvh.wgsl`'s `trace` function.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Traversal {
+    /// celray's own two-level BVH, walked in WGSL (any adapter).
+    #[default]
+    Software,
+    /// The driver's acceleration structures through wgpu ray queries
+    /// (`lib/trace_rq.wgsl`; needs `Features::EXPERIMENTAL_RAY_QUERY`).
+    Driver,
+}
+
+impl Traversal {
+    /// The include this traversal puts in place of `lib/trace_bvh.wgsl`,
+    /// and the `enable` line it needs at the top of the module.
+    fn swap(self) -> Option<(&'static str, &'static str)> {
+        match self {
+            Traversal::Software => None,
+            Traversal::Driver => Some(("lib/trace_rq.wgsl", "enable wgpu_ray_query;")),
+        }
+    }
+}
+
 /// Expands the `#include "..."` lines of pass `name`. Each piece is included
 /// once, however many files ask for it; a missing piece or a cycle is an error.
 pub fn compose(name: &str) -> Result<String, GpuError> {
-    compose_from(name, &|n| source_of(n))
+    compose_from(name, &|n| source_of(n), Traversal::Software)
+}
+
+/// [`compose`] with the given traversal (the driver variant swaps in
+/// `lib/trace_rq.wgsl` and enables ray queries).
+pub fn compose_variant(name: &str, traversal: Traversal) -> Result<String, GpuError> {
+    compose_from(name, &|n| source_of(n), traversal)
 }
 
 /// [`compose`] over the files of `overrides` (disk first, then embedded).
-pub fn compose_with(name: &str, overrides: &ShaderOverrides) -> Result<String, GpuError> {
-    compose_from(name, &|n| overrides.source_of(n))
+pub fn compose_with(
+    name: &str,
+    overrides: &ShaderOverrides,
+    traversal: Traversal,
+) -> Result<String, GpuError> {
+    compose_from(name, &|n| overrides.source_of(n), traversal)
 }
 
 fn compose_from<'a>(
     name: &str,
     lookup: &dyn Fn(&str) -> Option<&'a str>,
+    traversal: Traversal,
 ) -> Result<String, GpuError> {
-    compose_mapped(name, lookup).map(|(text, _)| text)
+    compose_mapped(name, lookup, traversal).map(|(text, _)| text)
 }
 
 /// The composed text and, for each of its lines, the file and line
@@ -124,18 +166,37 @@ fn compose_from<'a>(
 fn compose_mapped<'a>(
     name: &str,
     lookup: &dyn Fn(&str) -> Option<&'a str>,
+    traversal: Traversal,
 ) -> Result<(String, Vec<(String, usize)>), GpuError> {
     let mut out = String::new();
     let mut origins = Vec::new();
     let mut included = Vec::new();
+    let swap = traversal.swap();
+    if let Some((_, enable)) = swap {
+        // Enable directives must come before any declaration.
+        out.push_str(enable);
+        out.push('\n');
+        origins.push(("(driver variant)".to_string(), 1));
+    }
+    let swapped = |n: &str| match swap {
+        Some((to, _)) if n == "lib/trace_bvh.wgsl" => lookup(to),
+        _ => lookup(n),
+    };
     expand(
         name,
-        lookup,
+        &swapped,
         &mut out,
         &mut origins,
         &mut included,
         &mut Vec::new(),
     )?;
+    if let Some((to, _)) = swap {
+        for (file, _) in origins.iter_mut() {
+            if file == "lib/trace_bvh.wgsl" {
+                *file = to.to_string();
+            }
+        }
+    }
     Ok((out, origins))
 }
 
@@ -144,11 +205,21 @@ fn compose_mapped<'a>(
 /// `wgsl:146:12 (lib/shading.wgsl:40:12)`, and drops the box-drawing
 /// characters of naga's report (many UI fonts lack them).
 pub fn annotate_error(message: &str, name: &str, overrides: Option<&ShaderOverrides>) -> String {
+    annotate_error_variant(message, name, overrides, Traversal::Software)
+}
+
+/// [`annotate_error`] for the pass composed with `traversal`.
+pub fn annotate_error_variant(
+    message: &str,
+    name: &str,
+    overrides: Option<&ShaderOverrides>,
+    traversal: Traversal,
+) -> String {
     let lookup = |n: &str| match overrides {
         Some(o) => o.source_of(n),
         None => source_of(n),
     };
-    let origins = match compose_mapped(name, &lookup) {
+    let origins = match compose_mapped(name, &lookup, traversal) {
         Ok((_, origins)) => origins,
         Err(_) => return message.to_string(),
     };
@@ -216,10 +287,19 @@ fn expand<'a>(
 
 /// Composes pass `name` and creates its module inside a validation scope.
 pub fn create_module(gpu: &crate::gpu::Gpu, name: &str) -> Result<wgpu::ShaderModule, GpuError> {
+    create_module_variant(gpu, name, Traversal::Software)
+}
+
+/// [`create_module`] with the given traversal.
+pub fn create_module_variant(
+    gpu: &crate::gpu::Gpu,
+    name: &str,
+    traversal: Traversal,
+) -> Result<wgpu::ShaderModule, GpuError> {
     let overrides = gpu.shader_overrides();
     let source = match &overrides {
-        Some(o) => compose_with(name, o)?,
-        None => compose(name)?,
+        Some(o) => compose_with(name, o, traversal)?,
+        None => compose_variant(name, traversal)?,
     };
     gpu.scoped(|| {
         gpu.device
@@ -229,7 +309,7 @@ pub fn create_module(gpu: &crate::gpu::Gpu, name: &str) -> Result<wgpu::ShaderMo
             })
     })
     .map_err(|e| {
-        let message = annotate_error(&e.to_string(), name, overrides.as_deref());
+        let message = annotate_error_variant(&e.to_string(), name, overrides.as_deref(), traversal);
         GpuError::Shader(format!("{name}: {message}"))
     })
 }
@@ -240,7 +320,8 @@ mod tests {
 
     #[test]
     fn errors_name_the_original_file_and_line() {
-        let (text, origins) = compose_mapped("resolve.wgsl", &source_of).unwrap();
+        let (text, origins) =
+            compose_mapped("resolve.wgsl", &source_of, Traversal::Software).unwrap();
         assert_eq!(text.lines().count(), origins.len());
         // The first line of resolve.wgsl's own code comes after its includes.
         let own = origins

@@ -9,6 +9,7 @@
 
 pub mod accumulate;
 pub mod camera;
+pub mod driver_accel;
 pub mod raster;
 pub mod ray_batch;
 pub mod resolve;
@@ -26,10 +27,13 @@ use crate::sampling::{sample, Aperture, Sample};
 use crate::scene::ApertureShape;
 use crate::scene::Scene;
 use accumulate::AccumulatePass;
+use driver_accel::DriverAccel;
 use raster::RasterPass;
 use resolve::ResolvePass;
 use scene_buffers::SceneBuffers;
-pub use settings::{RenderMode, RenderSettings, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP};
+pub use settings::{
+    AccelChoice, RenderMode, RenderSettings, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP,
+};
 use targets::Targets;
 use trace::TracePass;
 
@@ -50,6 +54,43 @@ pub struct Renderer {
     samples: u32,
     /// GPU time per pass, when enabled and the adapter has timestamps.
     timer: Option<PassTimer>,
+    /// The driver's acceleration structures, when rays walk them
+    /// (`settings.accel`); `None` on the software BVH.
+    driver: Option<DriverAccel>,
+    /// Why the driver path was asked for but not taken (one line).
+    accel_notice: Option<String>,
+}
+
+/// The driver's structures for `scene` where `settings.accel` asks for them
+/// (`auto`: where [`AccelChoice::driver_preferred`]) and the ray-traced
+/// passes run; else `None`, with a one-line notice when the driver path was
+/// wanted but cannot serve (the image is then the software path's).
+fn choose_driver(
+    gpu: &Gpu,
+    scene: &Scene,
+    buffers: &SceneBuffers,
+    settings: &RenderSettings,
+) -> (Option<DriverAccel>, Option<String>) {
+    let wanted = match settings.accel {
+        AccelChoice::Software => false,
+        AccelChoice::Driver => true,
+        AccelChoice::Auto => {
+            gpu.has_ray_queries()
+                && AccelChoice::driver_preferred(gpu.adapter.get_info().device_type)
+        }
+    };
+    if !wanted || settings.mode == RenderMode::Raster {
+        return (None, None);
+    }
+    match DriverAccel::build(gpu, scene, buffers) {
+        Ok(d) => (Some(d), None),
+        Err(reason) => {
+            let notice =
+                format!("driver ray queries not used: {reason}; tracing with the software BVH");
+            log::warn!("{notice}");
+            (None, Some(notice))
+        }
+    }
 }
 
 impl Renderer {
@@ -70,6 +111,7 @@ impl Renderer {
                 contents: bytemuck::bytes_of(&<FrameUniforms as bytemuck::Zeroable>::zeroed()),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
+        let (driver, accel_notice) = choose_driver(gpu, &scene, &buffers, &settings);
         let mut renderer = Renderer {
             raster: RasterPass::new(gpu)?,
             trace: TracePass::new(gpu)?,
@@ -82,20 +124,52 @@ impl Renderer {
             frame,
             samples: 0,
             timer: None,
+            driver,
+            accel_notice,
         };
-        renderer.bind(gpu);
+        renderer.bind(gpu)?;
         Ok(renderer)
     }
 
-    fn bind(&mut self, gpu: &Gpu) {
+    fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
         self.raster.prepare(gpu, &self.frame, &self.buffers);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
-        self.trace
-            .prepare(gpu, &self.frame, &self.buffers, &self.targets, variant);
+        let traced = self.trace.prepare(
+            gpu,
+            &self.frame,
+            &self.buffers,
+            &self.targets,
+            self.driver.as_ref(),
+            variant,
+        );
+        if let Err(e) = traced {
+            // A driver variant that does not build (its shader or pipeline)
+            // falls back to the software BVH with the notice; the software
+            // variant failing is an error as before.
+            if self.driver.take().is_none() {
+                return Err(e);
+            }
+            let words: Vec<String> = e.to_string().split_whitespace().map(String::from).collect();
+            let notice = format!(
+                "driver ray queries not used: the driver trace pipeline failed: {}; tracing with the software BVH",
+                words.join(" ")
+            );
+            log::warn!("{notice}");
+            self.accel_notice = Some(notice);
+            self.trace.prepare(
+                gpu,
+                &self.frame,
+                &self.buffers,
+                &self.targets,
+                None,
+                variant,
+            )?;
+        }
         self.accumulate
             .prepare(gpu, &self.frame, &self.buffers, &self.targets);
         self.capture_resolve
             .prepare(gpu, &self.settings, &self.targets);
+        Ok(())
     }
 
     pub fn scene(&self) -> &Scene {
@@ -108,6 +182,25 @@ impl Renderer {
 
     pub fn scene_buffers(&self) -> &SceneBuffers {
         &self.buffers
+    }
+
+    /// Which acceleration structure rays walk now: "driver" or "software".
+    pub fn accel_in_use(&self) -> &'static str {
+        if self.trace.uses_driver() {
+            "driver"
+        } else {
+            "software"
+        }
+    }
+
+    /// Why the driver path was asked for but is not used, if it is not.
+    pub fn accel_notice(&self) -> Option<&str> {
+        self.accel_notice.as_deref()
+    }
+
+    /// The driver's structures, when rays walk them.
+    pub fn driver_accel(&self) -> Option<&DriverAccel> {
+        self.driver.as_ref()
     }
 
     /// Samples averaged so far.
@@ -128,8 +221,10 @@ impl Renderer {
     /// Replaces the scene (uploading it again) and restarts accumulation.
     pub fn set_scene(&mut self, gpu: &Gpu, scene: Scene) -> Result<(), GpuError> {
         self.buffers = SceneBuffers::upload(gpu, &scene)?;
+        (self.driver, self.accel_notice) =
+            choose_driver(gpu, &scene, &self.buffers, &self.settings);
         self.scene = scene;
-        self.bind(gpu);
+        self.bind(gpu)?;
         self.reset();
         Ok(())
     }
@@ -168,7 +263,7 @@ impl Renderer {
         // Edited materials or lights may need other code in the trace kernel
         // (e.g. a first reflective material).
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
-        self.trace.select_variant(gpu, variant);
+        self.trace.select_variant(gpu, variant)?;
         self.reset();
         Ok(())
     }
@@ -184,8 +279,14 @@ impl Renderer {
         if (settings.width, settings.height) != (self.targets.width, self.targets.height) {
             self.targets = Targets::new(gpu, settings.width, settings.height)?;
         }
+        let accel_changed = settings.accel != self.settings.accel
+            || (settings.mode == RenderMode::Raster) != (self.settings.mode == RenderMode::Raster);
         self.settings = settings;
-        self.bind(gpu);
+        if accel_changed {
+            (self.driver, self.accel_notice) =
+                choose_driver(gpu, &self.scene, &self.buffers, &self.settings);
+        }
+        self.bind(gpu)?;
         self.reset();
         Ok(())
     }
@@ -273,9 +374,11 @@ impl Renderer {
         timestamps: Option<(&wgpu::QuerySet, u32)>,
     ) -> Result<(), GpuError> {
         let uniforms = self.frame_uniforms(self.samples);
+        let mut motion_time = None;
         if self.buffers.has_motion {
             let time = self.sample_schedule(self.samples).time;
             self.buffers.write_instances_at(gpu, &self.scene, time);
+            motion_time = Some(time);
         }
         gpu.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
@@ -307,6 +410,10 @@ impl Renderer {
         );
         stamp(&mut encoder, 1);
         let traced = mode != RenderMode::Raster;
+        if let (true, Some(time), Some(driver)) = (traced, motion_time, self.driver.as_mut()) {
+            // The driver's top level holds sample k's transforms: rebuilt here.
+            driver.encode_motion(&mut encoder, &self.scene, time);
+        }
         if traced {
             self.trace.encode(&mut encoder, &self.targets, timer);
         }

@@ -5,8 +5,10 @@
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{buffer_entries, read_only_storage_entry, read_write_storage_entry};
+use crate::gpu::shader::Traversal;
 use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP};
 use crate::gpu::{readback, shader, Gpu, GpuError};
+use crate::render::driver_accel::{self, DriverAccel};
 use crate::render::scene_buffers::SceneBuffers;
 
 pub struct RayBatch {
@@ -15,11 +17,20 @@ pub struct RayBatch {
     pipeline: wgpu::ComputePipeline,
     csg_pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// Group 2 of the driver variant (and an empty group 1), when built so.
+    driver: Option<(wgpu::BindGroupLayout, wgpu::BindGroup)>,
 }
 
 impl RayBatch {
+    /// The software variant: rays walk celray's own BVH.
     pub fn new(gpu: &Gpu) -> Result<RayBatch, GpuError> {
-        let module = shader::create_module(gpu, "ray_batch.wgsl")?;
+        Self::with_traversal(gpu, Traversal::Software)
+    }
+
+    /// The variant that walks `traversal`'s structures ([`Traversal::Driver`]
+    /// needs ray queries; trace with [`RayBatch::trace_driver_timed`]).
+    pub fn with_traversal(gpu: &Gpu, traversal: Traversal) -> Result<RayBatch, GpuError> {
+        let module = shader::create_module_variant(gpu, "ray_batch.wgsl", traversal)?;
         let c = wgpu::ShaderStages::COMPUTE;
         gpu.scoped(|| {
             let layout = gpu
@@ -45,7 +56,24 @@ impl RayBatch {
                         bind_group_layouts: &[Some(&layout)],
                         immediate_size: 0,
                     });
+            let driver = (traversal == Traversal::Driver).then(|| {
+                (
+                    driver_accel::bind_group_layout(gpu),
+                    driver_accel::empty_bind_group(gpu),
+                )
+            });
             let make = |csg: bool| {
+                let constants = [("CSG_ENABLED", f64::from(u8::from(csg)))];
+                if let Some((driver_layout, _)) = &driver {
+                    return driver_accel::pipeline(
+                        gpu,
+                        "ray batch pipeline (driver ray queries)",
+                        &module,
+                        &[&layout],
+                        driver_layout,
+                        &constants,
+                    );
+                }
                 gpu.device
                     .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                         label: Some("ray batch pipeline"),
@@ -53,7 +81,7 @@ impl RayBatch {
                         module: &module,
                         entry_point: Some("main"),
                         compilation_options: wgpu::PipelineCompilationOptions {
-                            constants: &[("CSG_ENABLED", f64::from(u8::from(csg)))],
+                            constants: &constants,
                             ..Default::default()
                         },
                         cache: None,
@@ -64,6 +92,7 @@ impl RayBatch {
                 pipeline,
                 csg_pipeline,
                 layout,
+                driver,
             }
         })
     }
@@ -88,6 +117,39 @@ impl RayBatch {
         scene: &SceneBuffers,
         rays: &[GpuRay],
     ) -> Result<(Vec<GpuHit>, f64), GpuError> {
+        self.trace_any(gpu, scene, None, rays)
+    }
+
+    /// [`RayBatch::trace_timed`] through the driver's structures `accel`
+    /// (built for `scene`); this batch must be the driver variant.
+    pub fn trace_driver_timed(
+        &self,
+        gpu: &Gpu,
+        scene: &SceneBuffers,
+        accel: &DriverAccel,
+        rays: &[GpuRay],
+    ) -> Result<(Vec<GpuHit>, f64), GpuError> {
+        self.trace_any(gpu, scene, Some(accel), rays)
+    }
+
+    fn trace_any(
+        &self,
+        gpu: &Gpu,
+        scene: &SceneBuffers,
+        accel: Option<&DriverAccel>,
+        rays: &[GpuRay],
+    ) -> Result<(Vec<GpuHit>, f64), GpuError> {
+        let driver_group = match (&self.driver, accel) {
+            (None, None) => None,
+            (Some((layout, empty)), Some(a)) => Some((empty, a.bind_group(gpu, layout))),
+            _ => {
+                return Err(GpuError::Unsupported(
+                    "ray batch: the driver variant traces with driver structures, \
+                     the software variant without"
+                        .into(),
+                ))
+            }
+        };
         if rays.is_empty() {
             return Ok((Vec::new(), 0.0));
         }
@@ -142,6 +204,10 @@ impl RayBatch {
                 &self.csg_pipeline
             });
             pass.set_bind_group(0, &group, &[]);
+            if let Some((empty, driver)) = &driver_group {
+                pass.set_bind_group(1, *empty, &[]);
+                pass.set_bind_group(2, driver, &[]);
+            }
             // At most 65,535 workgroups: up to 4 million rays per batch.
             let groups = (rays.len() as u32).div_ceil(RAY_BATCH_WORKGROUP);
             pass.dispatch_workgroups(groups, 1, 1);

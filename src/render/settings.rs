@@ -81,6 +81,51 @@ pub const MAX_IMAGE_SAMPLES: u64 = 1 << 37;
 /// Most mirror/glossy bounces after the primary hit (`--max-bounces`, the
 /// app's slider): past a few bounces a reflection adds nothing visible.
 pub const MAX_BOUNCES: u32 = 16;
+/// Which acceleration structure the ray-traced passes walk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AccelChoice {
+    /// The driver's where the adapter has ray queries and the driver path
+    /// measured faster on that kind of adapter (see
+    /// [`AccelChoice::driver_preferred`]), else software.
+    #[default]
+    Auto,
+    /// celray's own two-level BVH, walked in WGSL: any adapter.
+    Software,
+    /// The driver's acceleration structures through wgpu ray queries;
+    /// falls back to software, with a notice, where it cannot run.
+    Driver,
+}
+
+impl AccelChoice {
+    pub const ALL: [AccelChoice; 3] = [
+        AccelChoice::Auto,
+        AccelChoice::Software,
+        AccelChoice::Driver,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AccelChoice::Auto => "auto",
+            AccelChoice::Software => "software",
+            AccelChoice::Driver => "driver",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<AccelChoice> {
+        Self::ALL.into_iter().find(|m| m.name() == text)
+    }
+
+    /// Whether `auto` takes the driver path on adapters of this type (given
+    /// ray queries): only where it measured faster than the software path
+    /// (`celray bench accel`, README "Driver ray queries"). On lavapipe
+    /// (Mesa 25.0.7, 2 cores) it did not (0.6x the software closest-hit
+    /// rate on FlightHelmet and 100 spheres, 1.0x on spot x 10,000; the trace
+    /// pass 1.2-1.7x slower), so CPU adapters stay on software; no other
+    /// adapter type has been measured yet, so they do too.
+    pub fn driver_preferred(_device_type: wgpu::DeviceType) -> bool {
+        false
+    }
+}
 
 /// Everything about how a scene is rendered that is not the scene itself.
 #[derive(Debug, Clone, PartialEq)]
@@ -100,6 +145,8 @@ pub struct RenderSettings {
     pub mode: RenderMode,
     /// Mirror reflection bounces after the primary hit (ray modes).
     pub max_bounces: u32,
+    /// Which acceleration structure rays walk (same image either way).
+    pub accel: AccelChoice,
 }
 
 impl Default for RenderSettings {
@@ -114,6 +161,7 @@ impl Default for RenderSettings {
             exposure: 1.0,
             mode: RenderMode::Hybrid,
             max_bounces: 3,
+            accel: AccelChoice::Auto,
         }
     }
 }

@@ -3,25 +3,30 @@
 //! hybrid mode, composited against the raster depth; everything in raytrace
 //! mode), then shadow rays and mirror reflections against the whole scene.
 
+use std::collections::HashMap;
+
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{
     buffer_entries, read_only_storage_entry, read_write_storage_entry, storage_texture_entry,
     texture_entry, uniform_entry,
 };
+use crate::gpu::shader::Traversal;
 use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::TRACE_WORKGROUP;
 use crate::gpu::{readback, shader, Gpu, GpuError};
+use crate::render::driver_accel::{self, DriverAccel};
 use crate::render::scene_buffers::SceneBuffers;
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 use crate::render::RenderSettings;
 use crate::scene::{Light, Material, Scene};
 
 pub struct TracePass {
-    /// Pipeline variants by [`Variant::index`], each built the first time a
-    /// scene needs it: code a scene cannot reach (CSG, triangle meshes) is
-    /// compiled out, which the CPU driver runs markedly faster.
-    pipelines: std::collections::HashMap<Variant, wgpu::ComputePipeline>,
+    /// Pipeline variants, each built the first time a scene needs it and
+    /// kept: code a scene cannot reach (CSG, triangle meshes, shadows,
+    /// reflections, glossy sampling) is compiled out, which the CPU driver
+    /// runs markedly faster.
+    pipelines: HashMap<Variant, wgpu::ComputePipeline>,
     variant: Variant,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
@@ -30,6 +35,19 @@ pub struct TracePass {
     bind_groups: Option<(wgpu::BindGroup, wgpu::BindGroup)>,
     /// Counters the shader bumps: [0] = pixels that ran out of traversal steps.
     stats: wgpu::Buffer,
+    /// The driver variant (wgpu ray queries), built the first time a scene
+    /// is traced through the driver's structures; `Some` group 2 while the
+    /// current scene is.
+    driver: Option<DriverVariant>,
+    driver_group: Option<wgpu::BindGroup>,
+}
+
+/// The trace pass composed with `lib/trace_rq.wgsl`: its own module, so the
+/// software pipelines carry none of it.
+struct DriverVariant {
+    module: wgpu::ShaderModule,
+    layout: wgpu::BindGroupLayout,
+    pipelines: HashMap<Variant, wgpu::ComputePipeline>,
 }
 
 /// Which optional code a scene and its settings need in the trace kernel.
@@ -45,9 +63,12 @@ pub struct Variant {
 
 impl Variant {
     pub fn of(scene: &Scene, buffers: &SceneBuffers, settings: &RenderSettings) -> Variant {
-        let reflective = |m: &&Material| m.reflectivity > 0.0;
-        let reflections =
-            settings.max_bounces > 0 && scene.materials.iter().any(|m| reflective(&m));
+        let reflective: Vec<&Material> = scene
+            .materials
+            .iter()
+            .filter(|m| m.reflectivity > 0.0)
+            .collect();
+        let reflections = settings.max_bounces > 0 && !reflective.is_empty();
         Variant {
             csg: !buffers.accel.csg_ops.is_empty(),
             meshes: !buffers.accel.triangles.is_empty(),
@@ -57,19 +78,24 @@ impl Variant {
                 }
             }),
             reflections,
-            glossy: reflections
-                && scene
-                    .materials
-                    .iter()
-                    .filter(reflective)
-                    .any(|m| m.roughness > 0.0),
+            glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
         }
+    }
+
+    /// The override constants that select this variant in trace.wgsl.
+    fn constants(self) -> [(&'static str, f64); 5] {
+        let flag = |b: bool| f64::from(u8::from(b));
+        [
+            ("CSG_ENABLED", flag(self.csg)),
+            ("MESHES_ENABLED", flag(self.meshes)),
+            ("SHADOWS_ENABLED", flag(self.shadows)),
+            ("REFLECTIONS_ENABLED", flag(self.reflections)),
+            ("GLOSSY_ENABLED", flag(self.glossy)),
+        ]
     }
 }
 
-/// The trace pipeline with only the code `variant` needs (overrides
-/// `CSG_ENABLED`, `MESHES_ENABLED`, `SHADOWS_ENABLED`,
-/// `REFLECTIONS_ENABLED` and `GLOSSY_ENABLED`).
+/// The trace pipeline with only the code `variant` needs.
 fn trace_pipeline(
     gpu: &Gpu,
     layout: &wgpu::PipelineLayout,
@@ -83,16 +109,7 @@ fn trace_pipeline(
             module,
             entry_point: Some("main"),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &[
-                    ("CSG_ENABLED", f64::from(u8::from(variant.csg))),
-                    ("MESHES_ENABLED", f64::from(u8::from(variant.meshes))),
-                    ("SHADOWS_ENABLED", f64::from(u8::from(variant.shadows))),
-                    (
-                        "REFLECTIONS_ENABLED",
-                        f64::from(u8::from(variant.reflections)),
-                    ),
-                    ("GLOSSY_ENABLED", f64::from(u8::from(variant.glossy))),
-                ],
+                constants: &variant.constants(),
                 ..Default::default()
             },
             cache: None,
@@ -153,7 +170,7 @@ impl TracePass {
                         | wgpu::BufferUsages::COPY_DST,
                 });
             TracePass {
-                pipelines: std::collections::HashMap::new(),
+                pipelines: HashMap::new(),
                 variant: Variant::default(),
                 module,
                 pipeline_layout: layout,
@@ -161,29 +178,70 @@ impl TracePass {
                 target_layout,
                 bind_groups: None,
                 stats,
+                driver: None,
+                driver_group: None,
             }
         })
     }
 
-    /// Uses the pipeline for `variant`, building it now if this pass has
-    /// not yet (pipelines are cached: switching back costs nothing).
-    pub fn select_variant(&mut self, gpu: &Gpu, variant: Variant) {
+    /// Uses the pipeline for `variant` on the current path (driver or
+    /// software), building it now if this pass has not yet.
+    pub fn select_variant(&mut self, gpu: &Gpu, variant: Variant) -> Result<(), GpuError> {
         self.variant = variant;
-        if !self.pipelines.contains_key(&variant) {
+        if self.driver_group.is_some() {
+            if let Some(v) = self.driver.as_mut() {
+                if !v.pipelines.contains_key(&variant) {
+                    let layouts = [&self.scene_layout, &self.target_layout];
+                    let pipeline = gpu.scoped(|| {
+                        driver_accel::pipeline(
+                            gpu,
+                            "trace pipeline (driver ray queries)",
+                            &v.module,
+                            &layouts,
+                            &v.layout,
+                            &variant.constants(),
+                        )
+                    })?;
+                    v.pipelines.insert(variant, pipeline);
+                }
+            }
+        } else if !self.pipelines.contains_key(&variant) {
             let pipeline = trace_pipeline(gpu, &self.pipeline_layout, &self.module, variant);
             self.pipelines.insert(variant, pipeline);
         }
+        Ok(())
     }
 
+    /// Binds `scene` and `targets`; with `driver`, the pass traces through
+    /// the driver's structures (the driver variant), else celray's BVH.
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
         frame: &wgpu::Buffer,
         scene: &SceneBuffers,
         targets: &Targets,
+        driver: Option<&DriverAccel>,
         variant: Variant,
-    ) {
-        self.select_variant(gpu, variant);
+    ) -> Result<(), GpuError> {
+        self.driver_group = None;
+        if let Some(accel) = driver {
+            if self.driver.is_none() {
+                let module = shader::create_module_variant(gpu, "trace.wgsl", Traversal::Driver)?;
+                let layout = gpu.scoped(|| driver_accel::bind_group_layout(gpu))?;
+                self.driver = Some(DriverVariant {
+                    module,
+                    layout,
+                    pipelines: HashMap::new(),
+                });
+            }
+            if let Some(v) = self.driver.as_ref() {
+                self.driver_group = Some(accel.bind_group(gpu, &v.layout));
+            }
+        }
+        if let Err(e) = self.select_variant(gpu, variant) {
+            self.driver_group = None;
+            return Err(e);
+        }
         let buffers = [
             frame,
             &scene.instances,
@@ -225,6 +283,12 @@ impl TracePass {
             entries: &entries,
         });
         self.bind_groups = Some((scene_group, target_group));
+        Ok(())
+    }
+
+    /// Whether the pass traces through the driver's structures.
+    pub fn uses_driver(&self) -> bool {
+        self.driver_group.is_some()
     }
 
     pub fn encode(
@@ -240,12 +304,19 @@ impl TracePass {
             label: Some("trace pass"),
             timestamp_writes: timer.map(|t| t.compute_writes("trace")),
         });
-        let Some(pipeline) = self.pipelines.get(&self.variant) else {
+        let pipeline = match (&self.driver_group, &self.driver) {
+            (Some(_), Some(v)) => v.pipelines.get(&self.variant),
+            _ => self.pipelines.get(&self.variant),
+        };
+        let Some(pipeline) = pipeline else {
             return;
         };
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, scene_group, &[]);
         pass.set_bind_group(1, target_group, &[]);
+        if let Some(group) = &self.driver_group {
+            pass.set_bind_group(2, group, &[]);
+        }
         pass.dispatch_workgroups(
             targets.width.div_ceil(TRACE_WORKGROUP),
             targets.height.div_ceil(TRACE_WORKGROUP),
