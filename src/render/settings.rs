@@ -65,6 +65,39 @@ impl RenderMode {
     }
 }
 
+/// What happens to the image while the view moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Temporal {
+    /// Every change restarts the accumulation: a moving view shows one
+    /// sample per frame (what `celray render` does).
+    #[default]
+    Off,
+    /// While the camera moves, each sample is blended into the previous
+    /// frame's image reprojected along the motion vectors, with the history
+    /// rejected on disocclusion and clipped to the neighbourhood; the
+    /// moment it stops, exact accumulation restarts.
+    Reproject,
+    /// For comparison: the reprojected history blended blindly (no
+    /// rejection, no clipping), the plain exponential blend that ghosts.
+    Blend,
+}
+
+impl Temporal {
+    pub const ALL: [Temporal; 3] = [Temporal::Off, Temporal::Reproject, Temporal::Blend];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Temporal::Off => "off",
+            Temporal::Reproject => "reproject",
+            Temporal::Blend => "blend",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<Temporal> {
+        Self::ALL.into_iter().find(|t| t.name() == text)
+    }
+}
+
 /// Everything about how a scene is rendered that is not the scene itself.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderSettings {
@@ -83,6 +116,8 @@ pub struct RenderSettings {
     pub mode: RenderMode,
     /// Mirror reflection bounces after the primary hit (ray modes).
     pub max_bounces: u32,
+    /// Temporal accumulation while the camera moves.
+    pub temporal: Temporal,
 }
 
 impl Default for RenderSettings {
@@ -97,6 +132,7 @@ impl Default for RenderSettings {
             exposure: 1.0,
             mode: RenderMode::Hybrid,
             max_bounces: 3,
+            temporal: Temporal::Off,
         }
     }
 }
