@@ -11,9 +11,9 @@ use clap::{Args, Parser, Subcommand};
 
 use celray::capture::{self, OutputFormat};
 use celray::gpu::{AdapterChoice, Gpu};
-use celray::render::{RenderMode, RenderSettings, ToneMap};
+use celray::render::{RenderMode, RenderSettings, Temporal, ToneMap};
 use celray::sampling::PixelPattern;
-use celray::scene::{parse_shading_model, Scene};
+use celray::scene::{parse_shading_model, CameraPath, Scene};
 
 #[derive(Parser)]
 #[command(
@@ -88,6 +88,18 @@ struct RenderArgs {
     /// Change one scene value, e.g. --set camera.fov_y_deg=30 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
+    /// A scripted camera path (.ron): render frames 0..=K of it, one sample
+    /// per frame as the app does, and write frame K (needs --frame).
+    #[arg(long, value_name = "PATH", requires = "frame")]
+    camera_path: Option<PathBuf>,
+    /// With --camera-path: the frame to write.
+    #[arg(long, value_name = "K", requires = "camera_path")]
+    frame: Option<u32>,
+    /// With --camera-path: off (every moving frame one fresh sample),
+    /// reproject (blend into the reprojected history, as the app does) or
+    /// blend (reprojected without rejection, for comparison).
+    #[arg(long, default_value = "off")]
+    temporal: String,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -189,6 +201,14 @@ struct ViewArgs {
     /// Do not watch the scene file and shaders for changes.
     #[arg(long)]
     no_watch: bool,
+    /// While the camera moves: reproject (blend into the reprojected
+    /// history), off (one fresh sample per frame) or blend (no rejection).
+    #[arg(long, default_value = "reproject")]
+    temporal: String,
+    /// A scripted camera path (.ron): frame N shows its camera at frame N
+    /// (for tests and benchmarks, with --exit-after-frames).
+    #[arg(long, value_name = "PATH")]
+    camera_path: Option<PathBuf>,
 }
 
 fn main() {
@@ -301,8 +321,51 @@ fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
     settings.max_bounces = args.max_bounces;
     settings.tone_map = ToneMap::parse(&args.tone_map)
         .with_context(|| format!("--tone-map {:?}: expected clamp or reinhard", args.tone_map))?;
+    settings.temporal = parse_temporal(&args.temporal)?;
+    let path = match &args.camera_path {
+        Some(p) => {
+            if same_file(p, &args.output) {
+                bail!(
+                    "output {} is the camera path file; refusing to overwrite an input",
+                    args.output.display()
+                );
+            }
+            let path = CameraPath::load(p)?;
+            path.check_up(&scene.camera)?;
+            Some(path)
+        }
+        None => None,
+    };
+    if path.is_none() && settings.temporal != Temporal::Off {
+        bail!(
+            "--temporal {}: temporal accumulation needs a moving camera; give --camera-path and --frame",
+            args.temporal
+        );
+    }
 
     let gpu = Gpu::new_headless(adapter)?;
+    if let (Some(path), Some(last)) = (&path, args.frame) {
+        let frame = capture::render_path_frame(
+            &gpu,
+            scene,
+            settings,
+            path,
+            last,
+            format == OutputFormat::Exr,
+            |_, _| {},
+        )?;
+        capture::save(&frame, &args.output)?;
+        if !args.quiet {
+            eprintln!(
+                "wrote {} (frame {last} of the camera path, {}x{}, {})",
+                args.output.display(),
+                frame.width,
+                frame.height,
+                gpu.summary.name
+            );
+        }
+        return Ok(());
+    }
     let bar = if args.quiet || settings.spp < 2 {
         indicatif::ProgressBar::hidden()
     } else {
@@ -335,6 +398,11 @@ fn render(args: RenderArgs, adapter: &AdapterChoice) -> Result<()> {
         );
     }
     Ok(())
+}
+
+fn parse_temporal(text: &str) -> Result<Temporal> {
+    Temporal::parse(text)
+        .with_context(|| format!("--temporal {text:?}: expected off, reproject or blend"))
 }
 
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -478,6 +546,16 @@ fn view(args: ViewArgs, adapter: &AdapterChoice) -> Result<()> {
         &args.pattern,
         &args.tone_map,
     )?;
+    let mut settings = settings;
+    settings.temporal = parse_temporal(&args.temporal)?;
+    let camera_path = match &args.camera_path {
+        Some(p) => {
+            let path = CameraPath::load(p)?;
+            path.check_up(&scene.camera)?;
+            Some(path)
+        }
+        None => None,
+    };
     let report_times = args.report_frame_times;
     let report = app::run(ViewOptions {
         scene,
@@ -493,6 +571,7 @@ fn view(args: ViewArgs, adapter: &AdapterChoice) -> Result<()> {
         report_frame_times: report_times,
         screenshot_dir: args.screenshot_dir.clone(),
         watch: !args.no_watch,
+        camera_path,
     })?;
     if report_times {
         let warmup = 10.min(report.frame_ms.len() / 4);

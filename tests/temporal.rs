@@ -379,3 +379,94 @@ fn uncovered_background_shows_no_ghost() {
         "the blend without rejection shows no ghost: the test cannot tell"
     );
 }
+
+/// Linear RGB to an sRGB frame, as the resolve pass encodes (clamp tone map).
+fn srgb_frame(linear: &[[f32; 3]], w: u32, h: u32) -> Frame {
+    Frame {
+        width: w,
+        height: h,
+        srgb8: linear
+            .iter()
+            .flat_map(|c| {
+                [
+                    common::srgb8(c[0]),
+                    common::srgb8(c[1]),
+                    common::srgb8(c[2]),
+                    255,
+                ]
+            })
+            .collect(),
+        linear: None,
+    }
+}
+
+/// After an orbit stops, exact accumulation restarts: 16 still frames give
+/// the very bytes `celray render` writes for that view at 16 samples (the
+/// same schedule, the same sums), so the convergence rate is today's.
+/// Also measured and printed, not asserted: the FLIP after k still samples
+/// when restarting, against seeding the accumulator with the history (its
+/// colour weighted by the count it holds), computed from the same buffers.
+#[test]
+fn stillness_restarts_exact_accumulation() {
+    let gpu = common::gpu();
+    let (w, h) = (96, 64);
+    let scene = orbit_scene(w, h);
+    let moving = 10;
+    let spp = 16;
+    let path = orbit_path(&scene, moving, 0.5);
+    let s = settings(&scene, Temporal::Reproject, spp);
+    let got = path_frame(&gpu, &scene, &s, &path, moving + spp);
+    let mut still = scene.clone();
+    still.camera = path.camera_at(&scene.camera, moving);
+    let want = render_frame(
+        &gpu,
+        still,
+        settings(&scene, Temporal::Off, spp),
+        false,
+        |_, _| {},
+    )
+    .unwrap();
+    assert!(
+        got.srgb8 == want.srgb8,
+        "the still view does not match `celray render`"
+    );
+
+    // Restart against seeding, by hand from the accumulator.
+    let reference = reference(&gpu, &scene, &path, moving);
+    let mut r = Renderer::new(&gpu, scene.clone(), s).unwrap();
+    for f in 0..=moving {
+        r.set_camera(path.camera_at(&scene.camera, f));
+        r.render_sample(&gpu).unwrap();
+    }
+    let history = r.read_accumulator(&gpu).unwrap();
+    let mut line = String::new();
+    for k in 1..=spp {
+        r.render_sample(&gpu).unwrap();
+        if !k.is_power_of_two() {
+            continue;
+        }
+        let exact = r.read_accumulator(&gpu).unwrap();
+        let restart: Vec<[f32; 3]> = exact
+            .iter()
+            .map(|e| [e[0] / e[3], e[1] / e[3], e[2] / e[3]])
+            .collect();
+        let seeded: Vec<[f32; 3]> = exact
+            .iter()
+            .zip(&history)
+            .map(|(e, hst)| {
+                let n = e[3] + hst[3];
+                [
+                    (e[0] + hst[0]) / n,
+                    (e[1] + hst[1]) / n,
+                    (e[2] + hst[2]) / n,
+                ]
+            })
+            .collect();
+        line += &format!(
+            " k={k}: restart {:.4} seeded {:.4};",
+            flip_mean(&reference, &srgb_frame(&restart, w, h)),
+            flip_mean(&reference, &srgb_frame(&seeded, w, h))
+        );
+    }
+    eprintln!("FLIP vs 256 spp after k still samples:{line}");
+}
