@@ -17,7 +17,7 @@ use celray::scene::{Instance, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
-    /// Which cases: raster, rays, effects, csg or all.
+    /// Which cases: raster, rays, effects (with temporal), csg, temporal or all.
     #[arg(default_value = "all")]
     pub suite: String,
     /// Frames timed per case (after 3 warm-up frames).
@@ -402,6 +402,67 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             pass_ms(&st, "accumulate")
         );
     }
+    temporal_rows(gpu, args)
+}
+
+/// The reproject pass's cost: the default scene orbiting 0.5 degrees a
+/// frame, one sample per frame, temporal reprojection on (every frame a
+/// moving one) against off.
+fn temporal_rows(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
+    println!(
+        "\n## Temporal reprojection while the camera orbits ({}x{}, hybrid, default scene)\n",
+        args.width, args.height
+    );
+    println!("| temporal | ms per frame (mean) | GPU raster | GPU trace | GPU accumulate | GPU reproject |");
+    println!("|---|---|---|---|---|---|");
+    for temporal in [
+        celray::render::Temporal::Off,
+        celray::render::Temporal::Reproject,
+    ] {
+        let scene = Scene::builtin_default();
+        let settings = RenderSettings {
+            width: args.width,
+            height: args.height,
+            temporal,
+            ..RenderSettings::default()
+        };
+        let mut renderer = Renderer::new(gpu, scene.clone(), settings)?;
+        renderer.enable_pass_timing(gpu);
+        let (mut wall, mut passes) = (0.0, Vec::<(&str, f64)>::new());
+        for i in 0..args.frames + 3 {
+            let mut camera = scene.camera.clone();
+            let turn = glam::Quat::from_rotation_y((0.5 * i as f32).to_radians());
+            camera.eye = camera.target + turn * (camera.eye - camera.target);
+            renderer.set_camera(camera);
+            let start = Instant::now();
+            renderer.render_sample(gpu)?;
+            gpu.wait_idle()?;
+            if i < 3 {
+                continue;
+            }
+            wall += start.elapsed().as_secs_f64() * 1e3 / f64::from(args.frames);
+            for (name, ms) in renderer.pass_times(gpu)? {
+                match passes.iter_mut().find(|(n, _)| *n == name) {
+                    Some(p) => p.1 += ms / f64::from(args.frames),
+                    None => passes.push((name, ms / f64::from(args.frames))),
+                }
+            }
+        }
+        let st = FrameStats {
+            mean: wall,
+            median: wall,
+            passes,
+        };
+        println!(
+            "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            temporal.name(),
+            st.mean,
+            pass_ms(&st, "raster"),
+            pass_ms(&st, "trace"),
+            pass_ms(&st, "accumulate"),
+            pass_ms(&st, "reproject")
+        );
+    }
     Ok(())
 }
 
@@ -478,6 +539,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             flip_convergence(gpu)
         }
         "csg" => csg::csg_suite(gpu, args),
+        "temporal" => temporal_rows(gpu, args),
         "all" => {
             raster_suite(gpu, args, helmet.as_ref())?;
             rays_suite(gpu, args, helmet.as_ref())?;
@@ -485,6 +547,8 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             flip_convergence(gpu)?;
             csg::csg_suite(gpu, args)
         }
-        other => anyhow::bail!("bench suite {other:?}: expected raster, rays, effects, csg or all"),
+        other => anyhow::bail!(
+            "bench suite {other:?}: expected raster, rays, effects, csg, temporal or all"
+        ),
     }
 }
