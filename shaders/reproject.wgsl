@@ -214,9 +214,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var front_depth = own_depth * (1.0 - DEPTH_JUMP);
     for (var dy = -r; dy <= r; dy++) {
         for (var dx = -r; dx <= r; dx++) {
+            // Within the outline disk only (a 1.5-pixel outline reads 3 x 3).
+            if f32(dx * dx + dy * dy) > frame.max_outline_px * frame.max_outline_px {
+                continue;
+            }
             let q = clamp(p + vec2<i32>(dx, dy), vec2<i32>(0), vec2<i32>(frame.size_px) - 1);
             let id_q = textureLoad(id_tex, q, 0).x;
-            if id_q != 0u && f32(dx * dx + dy * dy) <= frame.max_outline_px * frame.max_outline_px {
+            if id_q != 0u {
                 let d = textureLoad(normal_depth_tex, q, 0).w;
                 if d < front_depth {
                     front = q;
