@@ -22,8 +22,8 @@ use celray::scene::{Instance, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
-    /// Which cases: raster, rays, effects, csg, accel (driver ray queries
-    /// vs the software BVH) or all.
+    /// Which cases: floor, raster, rays, effects (with temporal), csg, accel
+    /// (driver ray queries vs the software BVH), temporal or all.
     #[arg(default_value = "all")]
     pub suite: String,
     /// Frames timed per case (after 3 warm-up frames).
@@ -513,6 +513,76 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
             pass_ms(&st, "accumulate")
         );
     }
+    temporal_rows(gpu, args, r)
+}
+
+/// The reproject pass's cost: the default scene orbiting 0.5 degrees a
+/// frame, one sample per frame, temporal reprojection on (every frame a
+/// moving one) against off.
+fn temporal_rows(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> {
+    md!(
+        r,
+        "\n## Temporal reprojection while the camera orbits ({}x{}, hybrid, default scene)\n",
+        args.width,
+        args.height
+    );
+    md!(r,"| temporal | ms per frame (mean) | GPU raster | GPU trace | GPU accumulate | GPU reproject |");
+    md!(r, "|---|---|---|---|---|---|");
+    for temporal in [
+        celray::render::Temporal::Off,
+        celray::render::Temporal::Reproject,
+    ] {
+        let scene = Scene::builtin_default();
+        let settings = RenderSettings {
+            width: args.width,
+            height: args.height,
+            temporal,
+            ..RenderSettings::default()
+        };
+        let mut renderer = Renderer::new(gpu, scene.clone(), settings)?;
+        renderer.enable_pass_timing(gpu);
+        let (mut wall, mut passes) = (0.0, Vec::<(&str, f64)>::new());
+        for i in 0..args.frames + 3 {
+            let mut camera = scene.camera.clone();
+            let turn = glam::Quat::from_rotation_y((0.5 * i as f32).to_radians());
+            camera.eye = camera.target + turn * (camera.eye - camera.target);
+            renderer.set_camera(camera);
+            let start = Instant::now();
+            renderer.render_sample(gpu)?;
+            gpu.wait_idle()?;
+            if i < 3 {
+                continue;
+            }
+            wall += start.elapsed().as_secs_f64() * 1e3 / f64::from(args.frames);
+            for (name, ms) in renderer.pass_times(gpu)? {
+                match passes.iter_mut().find(|(n, _)| *n == name) {
+                    Some(p) => p.1 += ms / f64::from(args.frames),
+                    None => passes.push((name, ms / f64::from(args.frames))),
+                }
+            }
+        }
+        let st = FrameStats {
+            mean: wall,
+            median: wall,
+            passes,
+        };
+        r.case(
+            &format!("temporal_{}", temporal.name()),
+            st.mean,
+            None,
+            &st.kernels(),
+        );
+        md!(
+            r,
+            "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            temporal.name(),
+            st.mean,
+            pass_ms(&st, "raster"),
+            pass_ms(&st, "trace"),
+            pass_ms(&st, "accumulate"),
+            pass_ms(&st, "reproject")
+        );
+    }
     Ok(())
 }
 
@@ -635,6 +705,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
         }
         "csg" => csg::csg_suite(gpu, args, r),
         "accel" => accel::accel_suite(gpu, args, helmet.as_ref(), r),
+        "temporal" => temporal_rows(gpu, args, r),
         "all" => {
             raster_suite(gpu, args, helmet.as_ref(), r)?;
             rays_suite(gpu, args, helmet.as_ref(), r)?;
@@ -644,7 +715,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             accel::accel_suite(gpu, args, helmet.as_ref(), r)
         }
         other => anyhow::bail!(
-            "bench suite {other:?}: expected floor, raster, rays, effects, csg, accel or all"
+            "bench suite {other:?}: expected floor, raster, rays, effects, csg, accel, temporal or all"
         ),
     }
 }

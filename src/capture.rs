@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::gpu::{Gpu, GpuError};
 use crate::render::{RenderSettings, Renderer};
-use crate::scene::Scene;
+use crate::scene::{CameraPath, Scene};
 
 #[derive(Debug, thiserror::Error)]
 pub enum CaptureError {
@@ -118,6 +118,47 @@ fn read_frame(gpu: &Gpu, renderer: &Renderer, want_linear: bool) -> Result<Frame
     Ok(Frame {
         width: renderer.settings().width,
         height: renderer.settings().height,
+        srgb8: renderer.read_srgb8(gpu)?,
+        linear: if want_linear {
+            Some(renderer.read_linear(gpu)?)
+        } else {
+            None
+        },
+    })
+}
+
+/// Renders frames 0..=`last` of a camera path, one sample per frame as the
+/// live app does, and returns frame `last` as the app would show it: with
+/// `settings.temporal` off every moving frame is a fresh single sample; with
+/// reprojection each moving frame blends into the reprojected history. A
+/// frame whose camera equals the previous one's accumulates exactly (until
+/// `settings.spp` samples, where the app stops too).
+pub fn render_path_frame(
+    gpu: &Gpu,
+    scene: Scene,
+    settings: RenderSettings,
+    path: &CameraPath,
+    last: u32,
+    want_linear: bool,
+    mut progress: impl FnMut(u32, u32),
+) -> Result<Frame, CaptureError> {
+    let mut renderer = Renderer::new(gpu, scene, settings.clone())?;
+    let base = renderer.scene().camera.clone();
+    for f in 0..=last {
+        let camera = path.camera_at(&base, f);
+        if f == 0 || camera != renderer.scene().camera {
+            renderer.set_camera(camera);
+        }
+        // The app stops sampling a still view once it has converged.
+        if !renderer.converged() {
+            renderer.render_sample(gpu)?;
+        }
+        progress(f + 1, last + 1);
+    }
+    gpu.wait_idle()?;
+    Ok(Frame {
+        width: settings.width,
+        height: settings.height,
         srgb8: renderer.read_srgb8(gpu)?,
         linear: if want_linear {
             Some(renderer.read_linear(gpu)?)

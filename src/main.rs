@@ -15,10 +15,11 @@ use clap::{Args, Parser, Subcommand};
 use celray::capture::{self, OutputFormat};
 use celray::gpu::{AdapterChoice, Gpu};
 use celray::render::{
-    AccelChoice, RenderMode, RenderSettings, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP,
+    AccelChoice, RenderMode, RenderSettings, Temporal, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES,
+    MAX_SPP,
 };
 use celray::sampling::PixelPattern;
-use celray::scene::{parse_shading_model, Scene, MAX_IMAGE_SIZE};
+use celray::scene::{parse_shading_model, CameraPath, Scene, MAX_IMAGE_SIZE};
 
 /// Most frames `celray bench --frames` times per case: the median of a
 /// thousand frames is as steady as it gets, and on the CPU driver a
@@ -111,6 +112,18 @@ struct RenderArgs {
     /// Change one scene value, e.g. --set camera.fov_y_deg=30 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
+    /// A scripted camera path (.ron): render frames 0..=K of it, one sample
+    /// per frame as the app does, and write frame K (needs --frame).
+    #[arg(long, value_name = "PATH", requires = "frame")]
+    camera_path: Option<PathBuf>,
+    /// With --camera-path: the frame to write.
+    #[arg(long, value_name = "K", requires = "camera_path")]
+    frame: Option<u32>,
+    /// With --camera-path: off (every moving frame one fresh sample),
+    /// reproject (blend into the reprojected history, as the app does) or
+    /// blend (reprojected without rejection, for comparison).
+    #[arg(long, default_value = "off")]
+    temporal: String,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -213,6 +226,14 @@ struct ViewArgs {
     /// Do not watch the scene file and shaders for changes.
     #[arg(long)]
     no_watch: bool,
+    /// While the camera moves: reproject (blend into the reprojected
+    /// history), off (one fresh sample per frame) or blend (no rejection).
+    #[arg(long, default_value = "reproject")]
+    temporal: String,
+    /// A scripted camera path (.ron): frame N shows its camera at frame N
+    /// (for tests and benchmarks, with --exit-after-frames).
+    #[arg(long, value_name = "PATH")]
+    camera_path: Option<PathBuf>,
 }
 
 /// An interrupted render: said as is, exit status 130 (as for SIGINT).
@@ -415,6 +436,27 @@ fn render(args: RenderArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Resu
     settings.accel = accel;
     settings.tone_map = ToneMap::parse(&args.tone_map)
         .with_context(|| format!("--tone-map {:?}: expected clamp or reinhard", args.tone_map))?;
+    settings.temporal = parse_temporal(&args.temporal)?;
+    let path = match &args.camera_path {
+        Some(p) => {
+            if same_file(p, &args.output) {
+                bail!(
+                    "output {} is the camera path file; refusing to overwrite an input",
+                    args.output.display()
+                );
+            }
+            let path = CameraPath::load(p)?;
+            path.check_up(&scene.camera)?;
+            Some(path)
+        }
+        None => None,
+    };
+    if path.is_none() && settings.temporal != Temporal::Off {
+        bail!(
+            "--temporal {}: temporal accumulation needs a moving camera; give --camera-path and --frame",
+            args.temporal
+        );
+    }
 
     // Ctrl+C stops between two samples and writes what is there; a second
     // Ctrl+C ends the process at once.
@@ -428,6 +470,28 @@ fn render(args: RenderArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Resu
     .context("cannot install the Ctrl+C handler")?;
 
     let gpu = Gpu::new_headless(adapter)?;
+    if let (Some(path), Some(last)) = (&path, args.frame) {
+        let frame = capture::render_path_frame(
+            &gpu,
+            scene,
+            settings,
+            path,
+            last,
+            format == OutputFormat::Exr,
+            |_, _| {},
+        )?;
+        capture::save(&frame, &args.output)?;
+        if !args.quiet {
+            eprintln!(
+                "wrote {} (frame {last} of the camera path, {}x{}, {})",
+                args.output.display(),
+                frame.width,
+                frame.height,
+                gpu.summary.name
+            );
+        }
+        return Ok(());
+    }
     let bar = if args.quiet || settings.spp < 2 {
         indicatif::ProgressBar::hidden()
     } else {
@@ -538,6 +602,11 @@ impl EtaNote {
             )
         })
     }
+}
+
+fn parse_temporal(text: &str) -> Result<Temporal> {
+    Temporal::parse(text)
+        .with_context(|| format!("--temporal {text:?}: expected off, reproject or blend"))
 }
 
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -679,7 +748,16 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
         &args.pattern,
         &args.tone_map,
     )?;
-    let settings = RenderSettings { accel, ..settings };
+    let mut settings = RenderSettings { accel, ..settings };
+    settings.temporal = parse_temporal(&args.temporal)?;
+    let camera_path = match &args.camera_path {
+        Some(p) => {
+            let path = CameraPath::load(p)?;
+            path.check_up(&scene.camera)?;
+            Some(path)
+        }
+        None => None,
+    };
     let report_times = args.report_frame_times;
     let report = app::run(ViewOptions {
         scene,
@@ -695,6 +773,7 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
         report_frame_times: report_times,
         screenshot_dir: args.screenshot_dir.clone(),
         watch: !args.no_watch,
+        camera_path,
     })?;
     if report_times {
         let warmup = 10.min(report.frame_ms.len() / 4);

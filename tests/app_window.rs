@@ -269,3 +269,60 @@ fn bad_view_arguments_fail_before_opening_a_window() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
 }
+
+/// `view --camera-path`: the path turns the camera from the scene to the
+/// sky by frame 2 and holds it, so the last of 6 frames shows only the
+/// background colour where the default camera shows the red ball.
+#[test]
+fn camera_path_drives_the_view() {
+    let x = start_xvfb();
+    let dir = scratch("camera_path");
+    std::fs::write(
+        dir.join("path.ron"),
+        "(version: 1, keys: [(frame: 0, eye: (0.0, 2.2, 7.0), target: (0.0, 0.6, 0.5)), \
+         (frame: 2, eye: (0.0, 2.2, 7.0), target: (0.0, 40.0, 6.0))])",
+    )
+    .unwrap();
+    let out = run_celray(
+        &[
+            "view",
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--camera-path",
+            "path.ron",
+            "--exit-after-frames",
+            "6",
+            "--screenshot",
+            "window.png",
+            "--no-watch",
+        ],
+        Some(&x.display),
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "celray view failed:\n{stderr}");
+    let img = image::open(dir.join("window.png"))
+        .expect("the screenshot was written")
+        .to_rgb8();
+    // The view, right of the panel: all sky, about (203, 218, 237) sRGB.
+    let view: Vec<[u8; 3]> = (0..360)
+        .flat_map(|y| (400..640).map(move |x| (x, y)))
+        .map(|(x, y)| img.get_pixel(x, y).0)
+        .collect();
+    let sky = view
+        .iter()
+        .filter(|p| {
+            [203i32, 218, 237]
+                .iter()
+                .zip(p.iter())
+                .all(|(w, g)| (w - i32::from(*g)).abs() <= 4)
+        })
+        .count();
+    assert!(
+        sky > view.len() * 9 / 10,
+        "the view is not the sky: {sky} of {} pixels",
+        view.len()
+    );
+}

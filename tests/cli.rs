@@ -185,3 +185,110 @@ fn adapters_lists_the_cpu_adapter() {
         "lavapipe should be listed as a Cpu adapter: {out}"
     );
 }
+
+/// `render --camera-path --frame K`: with reprojection the frame differs
+/// from one fresh sample (`--temporal off`), repeats byte for byte, and
+/// equals a plain render once the path has held still for `--spp` frames
+/// (exact accumulation restarts). Bad paths and flags are refused.
+#[test]
+fn camera_path_renders_a_frame_of_the_path() {
+    let dir = scratch("camera_path");
+    std::fs::write(
+        dir.join("path.ron"),
+        "(version: 1, keys: [(frame: 0, eye: (0.0, 2.2, 7.0), target: (0.0, 0.6, 0.5)), \
+         (frame: 4, eye: (0.4, 2.2, 7.0), target: (0.0, 0.6, 0.5))])",
+    )
+    .unwrap();
+    let run = |out: &str, frame: &str, temporal: &str| {
+        let o = celray(
+            &[
+                "render",
+                "-o",
+                out,
+                "--width",
+                "48",
+                "--height",
+                "32",
+                "--spp",
+                "4",
+                "--camera-path",
+                "path.ron",
+                "--frame",
+                frame,
+                "--temporal",
+                temporal,
+                "--quiet",
+            ],
+            &dir,
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(dir.join(out)).unwrap()
+    };
+    let reproject = run("r.png", "4", "reproject");
+    assert_eq!(reproject, run("r2.png", "4", "reproject"));
+    assert_ne!(reproject, run("off.png", "4", "off"));
+    // Frames 5..=8 hold the last key: 4 exact samples of that view.
+    let held = run("held.png", "8", "reproject");
+    let o = celray(
+        &[
+            "render",
+            "-o",
+            "plain.png",
+            "--width",
+            "48",
+            "--height",
+            "32",
+            "--spp",
+            "4",
+            "--set",
+            "camera.eye=(0.4, 2.2, 7.0)",
+            "--quiet",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(held, std::fs::read(dir.join("plain.png")).unwrap());
+
+    std::fs::write(dir.join("bad.ron"), "(version: 1, keys: [])").unwrap();
+    for args in [
+        &[
+            "render",
+            "-o",
+            "x.png",
+            "--camera-path",
+            "bad.ron",
+            "--frame",
+            "1",
+        ][..],
+        &[
+            "render",
+            "-o",
+            "x.png",
+            "--camera-path",
+            "missing.ron",
+            "--frame",
+            "1",
+        ][..],
+        &["render", "-o", "x.png", "--temporal", "reproject"][..],
+        &[
+            "render",
+            "-o",
+            "x.png",
+            "--camera-path",
+            "path.ron",
+            "--frame",
+            "1",
+            "--temporal",
+            "sideways",
+        ][..],
+    ] {
+        let o = celray(args, &dir);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).starts_with("error: "),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    assert!(!dir.join("x.png").exists());
+}

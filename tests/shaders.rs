@@ -186,6 +186,39 @@ fn twins_match_wgsl_layouts() {
     );
 }
 
+#[test]
+fn reproject_twin_matches_wgsl() {
+    let module = parse("reproject.wgsl");
+    check_twin!(
+        module,
+        ReprojectUniforms {
+            cur_clip_from_world,
+            prev_clip_from_world,
+            prev_eye,
+            prev_forward,
+            max_history,
+            clip_gamma,
+            depth_tolerance,
+            rejection
+        }
+    );
+    for (name, value) in [
+        ("TEMPORAL_REJECT_NONE", TEMPORAL_REJECT_NONE),
+        ("TEMPORAL_REJECT_CLIP", TEMPORAL_REJECT_CLIP),
+    ] {
+        assert_eq!(wgsl_u32_constant(&module, name), value, "{name}");
+    }
+    let main = module
+        .entry_points
+        .iter()
+        .find(|e| e.name == "main")
+        .expect("reproject main");
+    assert_eq!(
+        main.workgroup_size,
+        [REPROJECT_WORKGROUP, REPROJECT_WORKGROUP, 1]
+    );
+}
+
 fn wgsl_u32_constant(module: &naga::Module, name: &str) -> u32 {
     for (_, c) in module.constants.iter() {
         if c.name.as_deref() == Some(name) {

@@ -76,6 +76,8 @@ pub struct ViewOptions {
     pub screenshot_dir: PathBuf,
     /// Watch the scene file and shaders for changes.
     pub watch: bool,
+    /// A scripted camera path: frame N shows the path's camera at frame N.
+    pub camera_path: Option<crate::scene::CameraPath>,
 }
 
 #[derive(Debug, thiserror::Error)]

@@ -10,7 +10,7 @@ use super::layout::Layout;
 use super::model::Model;
 use super::timing::PassTimes;
 use crate::compare::ViewSpec;
-use crate::render::{AccelChoice, RenderMode, ToneMap, MAX_BOUNCES, MAX_SPP};
+use crate::render::{AccelChoice, RenderMode, Temporal, ToneMap, MAX_BOUNCES, MAX_SPP};
 use crate::sampling::PixelPattern;
 use crate::scene::{
     ApertureShape, Light, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
@@ -272,6 +272,16 @@ fn settings_ui(ui: &mut Ui, model: &mut Model) {
         ui.label("sample target");
         ui.add(egui::DragValue::new(&mut s.spp).range(1..=MAX_SPP));
     });
+    // off: one fresh sample per frame while the camera moves; reproject:
+    // blend into the reprojected history (exact accumulation resumes when
+    // the camera stops); blend: reprojected without rejection (ghosts).
+    enum_combo(
+        ui,
+        "while moving",
+        &mut s.temporal,
+        &Temporal::ALL,
+        Temporal::name,
+    );
     enum_combo(
         ui,
         "pattern",

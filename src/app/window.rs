@@ -187,6 +187,8 @@ struct Running {
     screenshot_dir: PathBuf,
     /// GPU pass times of the timed frames, for `--report-frame-times`.
     pass_times: Vec<timing::PassTimes>,
+    /// `--camera-path`: the path and the camera it starts from.
+    camera_path: Option<(crate::scene::CameraPath, crate::scene::Camera)>,
 }
 
 impl App {
@@ -332,6 +334,7 @@ impl App {
             repaint_at: None,
             screenshot_dir: o.screenshot_dir.clone(),
             pass_times: Vec::new(),
+            camera_path: o.camera_path.clone().map(|p| (p, o.scene.camera.clone())),
         };
         running.configure();
         if o.watch {
@@ -858,6 +861,11 @@ impl Running {
             self.model.view_aspect = w as f32 / h.max(1) as f32;
         }
         self.model.apply_camera_requests();
+        // A scripted camera path drives the camera, frame by frame.
+        if let Some((path, base)) = &self.camera_path {
+            let frame = u32::try_from(self.stats.frames).unwrap_or(u32::MAX);
+            self.model.scene.camera = path.camera_at(base, frame);
+        }
         self.model.commit_edits();
         if self.model.vsync != vsync_before {
             self.configure();

@@ -45,6 +45,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         include_str!("../../shaders/accumulate.wgsl"),
     ),
     ("resolve.wgsl", include_str!("../../shaders/resolve.wgsl")),
+    (
+        "reproject.wgsl",
+        include_str!("../../shaders/reproject.wgsl"),
+    ),
     ("trace.wgsl", include_str!("../../shaders/trace.wgsl")),
     (
         "ray_batch.wgsl",

@@ -222,3 +222,33 @@ pub struct GpuCsgLeaf {
     pub material: u32,
     pub _pad: u32,
 }
+
+/// Workgroup edge of the reproject kernel (8 x 8 invocations).
+pub const REPROJECT_WORKGROUP: u32 = 8;
+/// [`ReprojectUniforms::rejection`]: blend the reprojected history blindly
+/// (a plain exponential blend: ghosts where the view uncovers something).
+pub const TEMPORAL_REJECT_NONE: u32 = 0;
+/// [`ReprojectUniforms::rejection`]: reject the history on disocclusion
+/// (object id, view depth) and clip it to the current neighbourhood.
+pub const TEMPORAL_REJECT_CLIP: u32 = 1;
+
+/// Uniforms of the reproject pass (`shaders/reproject.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ReprojectUniforms {
+    /// This frame's camera without jitter or lens offset.
+    pub cur_clip_from_world: [[f32; 4]; 4],
+    /// The previous frame's camera without jitter or lens offset.
+    pub prev_clip_from_world: [[f32; 4]; 4],
+    pub prev_eye: [f32; 4],
+    /// Unit forward of the previous camera.
+    pub prev_forward: [f32; 4],
+    /// The most samples a history may count while the view moves.
+    pub max_history: f32,
+    /// Half-width of the clipping box in standard deviations.
+    pub clip_gamma: f32,
+    /// Relative view-depth difference beyond which the history is rejected.
+    pub depth_tolerance: f32,
+    /// `TEMPORAL_REJECT_*`.
+    pub rejection: u32,
+}

@@ -127,6 +127,39 @@ impl AccelChoice {
     }
 }
 
+/// What happens to the image while the view moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Temporal {
+    /// Every change restarts the accumulation: a moving view shows one
+    /// sample per frame (what `celray render` does).
+    #[default]
+    Off,
+    /// While the camera moves, each sample is blended into the previous
+    /// frame's image reprojected along the motion vectors, with the history
+    /// rejected on disocclusion and clipped to the neighbourhood; the
+    /// moment it stops, exact accumulation restarts.
+    Reproject,
+    /// For comparison: the reprojected history blended blindly (no
+    /// rejection, no clipping), the plain exponential blend that ghosts.
+    Blend,
+}
+
+impl Temporal {
+    pub const ALL: [Temporal; 3] = [Temporal::Off, Temporal::Reproject, Temporal::Blend];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Temporal::Off => "off",
+            Temporal::Reproject => "reproject",
+            Temporal::Blend => "blend",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<Temporal> {
+        Self::ALL.into_iter().find(|t| t.name() == text)
+    }
+}
+
 /// Everything about how a scene is rendered that is not the scene itself.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderSettings {
@@ -147,6 +180,8 @@ pub struct RenderSettings {
     pub max_bounces: u32,
     /// Which acceleration structure rays walk (same image either way).
     pub accel: AccelChoice,
+    /// Temporal accumulation while the camera moves.
+    pub temporal: Temporal,
 }
 
 impl Default for RenderSettings {
@@ -162,6 +197,7 @@ impl Default for RenderSettings {
             mode: RenderMode::Hybrid,
             max_bounces: 3,
             accel: AccelChoice::Auto,
+            temporal: Temporal::Off,
         }
     }
 }

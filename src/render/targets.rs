@@ -97,7 +97,7 @@ impl Targets {
                     width,
                     height,
                     NORMAL_DEPTH_FORMAT,
-                    attach,
+                    attach | wgpu::TextureUsages::COPY_SRC,
                 ),
                 id: texture(
                     gpu,
@@ -116,7 +116,7 @@ impl Targets {
                     width,
                     height,
                     NORMAL_DEPTH_FORMAT,
-                    storage,
+                    storage | wgpu::TextureUsages::COPY_SRC,
                 ),
                 id: texture(
                     gpu,
@@ -138,7 +138,10 @@ impl Targets {
             accum: gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("accumulation"),
                 size: accum_bytes,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                // COPY_DST: the temporal pass clears it and writes its blend.
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
             capture: texture(

@@ -90,6 +90,7 @@
 //!   (`|det| >= 1e-8`).
 //! - All colours are linear RGB.
 
+mod camera_path;
 mod convert;
 mod csg;
 mod error;
@@ -105,6 +106,7 @@ use std::path::Path;
 
 use glam::{Mat4, Vec3};
 
+pub use camera_path::{CameraKey, CameraPath, CAMERA_PATH_VERSION};
 pub use csg::{
     closed_mesh, Csg, CsgLeaf, CsgNode, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK,
 };
