@@ -249,6 +249,21 @@ fn raster_suite(
     Ok(())
 }
 
+/// One ray per pixel centre of sample 0's camera: what the ray cases trace.
+pub(crate) fn primary_rays(renderer: &Renderer, w: u32, h: u32) -> Vec<GpuRay> {
+    let cam = renderer.sample_camera(0);
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let (o, d) = cam.pixel_ray((w, h), x, y);
+            GpuRay {
+                origin: o.extend(0.0).to_array(),
+                dir: d.extend(3e38).to_array(),
+            }
+        })
+        .collect()
+}
+
 /// Closest-hit throughput of the primary rays of `scene`'s camera (one ray
 /// per pixel centre, by the ray-batch kernel), and the trace pass's time in
 /// raytrace mode (primary ray plus a shadow ray per lit hit).
@@ -271,17 +286,7 @@ fn ray_row(
     let build = Instant::now();
     let mut renderer = Renderer::new(gpu, scene.clone(), settings)?;
     let build_ms = build.elapsed().as_secs_f64() * 1e3;
-    let cam = renderer.sample_camera(0);
-    let rays: Vec<GpuRay> = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| {
-            let (o, d) = cam.pixel_ray((w, h), x, y);
-            GpuRay {
-                origin: o.extend(0.0).to_array(),
-                dir: d.extend(3e38).to_array(),
-            }
-        })
-        .collect();
+    let rays = primary_rays(&renderer, w, h);
     let batch = RayBatch::new(gpu)?;
     let buffers = renderer.scene_buffers();
     batch.trace_timed(gpu, buffers, &rays)?; // warm-up

@@ -7,7 +7,6 @@
 use std::time::Instant;
 
 use celray::gpu::shader::Traversal;
-use celray::gpu::twins::GpuRay;
 use celray::gpu::Gpu;
 use celray::render::driver_accel::DriverAccel;
 use celray::render::ray_batch::RayBatch;
@@ -15,7 +14,7 @@ use celray::render::{AccelChoice, RenderMode, RenderSettings, Renderer};
 use celray::scene::Scene;
 
 use super::report::{md, Report};
-use super::{grid, mesh_scene, BenchArgs};
+use super::{grid, mesh_scene, primary_rays, BenchArgs};
 
 /// Best of 3 (after a warm-up) seconds of `f`.
 fn best_of(mut f: impl FnMut() -> anyhow::Result<f64>) -> anyhow::Result<f64> {
@@ -69,17 +68,7 @@ fn row(
     let start = Instant::now();
     let renderer = Renderer::new(gpu, scene.clone(), settings)?;
     let software_build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let cam = renderer.sample_camera(0);
-    let rays: Vec<GpuRay> = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| {
-            let (o, d) = cam.pixel_ray((w, h), x, y);
-            GpuRay {
-                origin: o.extend(0.0).to_array(),
-                dir: d.extend(3e38).to_array(),
-            }
-        })
-        .collect();
+    let rays = primary_rays(&renderer, w, h);
     let buffers = renderer.scene_buffers();
     let software = RayBatch::new(gpu)?;
     let sw_s = best_of(|| Ok(software.trace_timed(gpu, buffers, &rays)?.1))?;
