@@ -3,11 +3,17 @@
 
 #include "lib/types.wgsl"
 #include "lib/shading.wgsl"
+#include "lib/intersect.wgsl"
+#include "lib/texture.wgsl"
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
 @group(0) @binding(2) var<storage, read> materials: array<GpuMaterial>;
 @group(0) @binding(3) var<storage, read> lights: array<GpuLight>;
+@group(0) @binding(4) var<storage, read> shapes: array<GpuShape>;
+@group(0) @binding(5) var base_color_maps: texture_2d_array<f32>;
+@group(0) @binding(6) var map_linear: sampler;
+@group(0) @binding(7) var map_nearest: sampler;
 
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
@@ -16,12 +22,16 @@ struct VsOut {
     @location(2) @interpolate(flat) instance: u32,
     @location(3) @interpolate(flat) material: u32,
     @location(4) @interpolate(flat) mirrored: u32,
+    @location(5) object_pos: vec3<f32>,
+    @location(6) object_normal: vec3<f32>,
+    @location(7) uv: vec2<f32>,
 }
 
 @vertex
 fn vs_main(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
     @builtin(instance_index) instance: u32,
 ) -> VsOut {
     // Field by field: copying the whole struct costs on CPU drivers.
@@ -33,6 +43,9 @@ fn vs_main(
     out.instance = instance;
     out.material = instances[instance].material;
     out.mirrored = instances[instance].mirrored;
+    out.object_pos = position;
+    out.object_normal = normal;
+    out.uv = uv;
     return out;
 }
 
@@ -42,11 +55,17 @@ struct GBuffer {
     @location(1) normal_depth: vec4<f32>,
     // Instance index + 1; 0 is background.
     @location(2) id: u32,
+    // The base colour after images and patterns (the trace pass shades
+    // rasterized hits with it in hybrid mode).
+    @location(3) albedo: vec4<f32>,
 }
 
 @fragment
 fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
-    let m = materials[in.material];
+    var m = materials[in.material];
+    if TEXTURES_ENABLED {
+        m.base_color = raster_albedo(in, m);
+    }
     var n = normalize(in.world_normal);
     // Two-sided surfaces (planes) shade their back with the flipped normal;
     // a mirroring transform flips the winding, so flip the test with it.
@@ -64,5 +83,42 @@ fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
     out.color = vec4<f32>(c, 1.0);
     out.normal_depth = vec4<f32>(n, dot(in.world_pos - eye, frame.view_forward.xyz));
     out.id = in.instance + 1u;
+    out.albedo = vec4<f32>(m.base_color, 1.0);
     return out;
+}
+
+// The base colour at a fragment: the checker at its object-space point, or
+// the image at its texture coordinates (analytic shapes compute theirs from
+// the object-space point), trilinear from screen derivatives. Derivatives
+// are taken before any branch (uniform control flow); across a longitude
+// seam the smaller of the derivatives of u and of u shifted by half a turn
+// is used, so the seam does not pick the coarsest mip.
+fn raster_albedo(in: VsOut, m: GpuMaterial) -> vec3<f32> {
+    let shape = shapes[instances[in.instance].shape];
+    var uv = in.uv;
+    var periodic = false;
+    if shape.kind != SHAPE_MESH {
+        uv = analytic_uv(shape.kind, shape.params, in.object_pos, in.object_normal);
+        periodic = periodic_u(shape.kind, in.object_normal);
+    }
+    let shifted = vec2<f32>(fract(uv.x + 0.5), uv.y);
+    let dx0 = dpdx(uv);
+    let dy0 = dpdy(uv);
+    let dx1 = dpdx(shifted);
+    let dy1 = dpdy(shifted);
+    var dx = dx0;
+    var dy = dy0;
+    if periodic && abs(dx1.x) < abs(dx0.x) {
+        dx.x = dx1.x;
+    }
+    if periodic && abs(dy1.x) < abs(dy0.x) {
+        dy.x = dy1.x;
+    }
+    if m.checker_size > 0.0 {
+        return checker(m, in.object_pos);
+    }
+    if m.texture_layer != NO_TEXTURE {
+        return sample_map_grad(m, uv * m.uv_scale, dx * m.uv_scale, dy * m.uv_scale);
+    }
+    return m.base_color;
 }

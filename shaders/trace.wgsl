@@ -10,6 +10,7 @@
 #include "lib/traverse.wgsl"
 #include "lib/csg.wgsl"
 #include "lib/random.wgsl"
+#include "lib/texture.wgsl"
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
@@ -23,11 +24,16 @@
 @group(0) @binding(8) var<storage, read_write> stats: array<atomic<u32>>;
 @group(0) @binding(9) var<storage, read> csg_ops: array<GpuCsgOp>;
 @group(0) @binding(10) var<storage, read> csg_leaves: array<GpuCsgLeaf>;
+@group(0) @binding(11) var base_color_maps: texture_2d_array<f32>;
+@group(0) @binding(12) var map_linear: sampler;
+@group(0) @binding(13) var map_nearest: sampler;
 @group(1) @binding(0) var raster_normal_depth: texture_2d<f32>;
 @group(1) @binding(1) var raster_id: texture_2d<u32>;
 @group(1) @binding(2) var out_color: texture_storage_2d<rgba16float, write>;
 @group(1) @binding(3) var out_normal_depth: texture_storage_2d<rgba32float, write>;
 @group(1) @binding(4) var out_id: texture_storage_2d<r32uint, write>;
+// The raster pass's base colour (hybrid: rasterized hits).
+@group(1) @binding(5) var raster_albedo: texture_2d<f32>;
 
 const TRACE_WORKGROUP: u32 = 8u;
 // Loop iterations one pixel may spend on traversal, all rays together:
@@ -91,6 +97,71 @@ fn glossy_direction(w: vec3<f32>, n: vec3<f32>, roughness: f32, pixel_key: u32, 
     return w;
 }
 
+// Texture coordinates of object-space point p on a mesh triangle: the
+// corners' coordinates weighted by p's barycentric coordinates (points off
+// the triangle extrapolate linearly, which the footprint needs).
+fn triangle_uv(tri: GpuTriangle, p: vec3<f32>) -> vec2<f32> {
+    let e1 = tri.p1.xyz - tri.p0.xyz;
+    let e2 = tri.p2.xyz - tri.p0.xyz;
+    let r = p - tri.p0.xyz;
+    let d11 = dot(e1, e1);
+    let d12 = dot(e1, e2);
+    let d22 = dot(e2, e2);
+    let r1 = dot(r, e1);
+    let r2 = dot(r, e2);
+    let den = d11 * d22 - d12 * d12;
+    if den == 0.0 {
+        return vec2<f32>(tri.p0.w, tri.n0.w);
+    }
+    let b1 = (d22 * r1 - d12 * r2) / den;
+    let b2 = (d11 * r2 - d12 * r1) / den;
+    return vec2<f32>(tri.p0.w, tri.n0.w) * (1.0 - b1 - b2) + vec2<f32>(tri.p1.w, tri.n1.w) * b1
+        + vec2<f32>(tri.p2.w, tri.n2.w) * b2;
+}
+
+// The base colour at a traced hit at world point p (facing normal n), seen
+// along unit direction d through a ray cone `width` wide there. The mip
+// level comes from the cone's footprint: the texture coordinates at two
+// points a footprint away on the tangent plane (across the ray, and along
+// its projection stretched by 1 / cos), as raster derivatives do per pixel.
+fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, width: f32) -> vec3<f32> {
+    let inst = hit.instance;
+    let to_object = instances[inst].object_from_world;
+    let po = (to_object * vec4<f32>(p, 1.0)).xyz;
+    if m.checker_size > 0.0 {
+        return checker(m, po);
+    }
+    let no = (transpose(instances[inst].world_from_object) * vec4<f32>(hit.normal, 0.0)).xyz;
+    let cos_t = max(abs(dot(d, n)), 0.05);
+    var along = d - n * dot(d, n);
+    if dot(along, along) < 1e-12 {
+        along = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
+        along = along - n * dot(along, n);
+    }
+    along = normalize(along);
+    let across = cross(n, along);
+    let q1 = (to_object * vec4<f32>(p + along * (width / cos_t), 1.0)).xyz;
+    let q2 = (to_object * vec4<f32>(p + across * width, 1.0)).xyz;
+    let shape = shapes[instances[inst].shape];
+    var uv0: vec2<f32>;
+    var uv1: vec2<f32>;
+    var uv2: vec2<f32>;
+    var periodic = false;
+    if shape.kind == SHAPE_MESH {
+        let tri = triangles[hit_triangle];
+        uv0 = triangle_uv(tri, po);
+        uv1 = triangle_uv(tri, q1);
+        uv2 = triangle_uv(tri, q2);
+    } else {
+        uv0 = analytic_uv(shape.kind, shape.params, po, no);
+        uv1 = analytic_uv(shape.kind, shape.params, q1, no);
+        uv2 = analytic_uv(shape.kind, shape.params, q2, no);
+        periodic = periodic_u(shape.kind, no);
+    }
+    let lod = footprint_lod(wrap_du(uv1 - uv0, periodic) * m.uv_scale, wrap_du(uv2 - uv0, periodic) * m.uv_scale);
+    return sample_map_level(m, uv0 * m.uv_scale, lod);
+}
+
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
@@ -110,6 +181,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let eye = frame.eye_in_world.xyz;
     let forward = frame.view_forward.xyz;
 
+    // The ray cone for mip selection: its spread is the angle between
+    // neighbouring pixels' rays; reflections widen it by the roughness.
+    var cone_spread = 0.0;
+    var cone_width = 0.0;
+    if TEXTURES_ENABLED {
+        let far_dx = frame.world_from_clip * vec4<f32>(ndc + vec2<f32>(2.0 / size.x, 0.0), 1.0, 1.0);
+        cone_spread = length(normalize(far_dx.xyz / far_dx.w - o) - d);
+    }
+    var from_raster = false;
+
     let hybrid = frame.mode == RENDER_MODE_HYBRID;
     var hit = trace(o, d, 0.0, 3.0e38, hybrid, false);
     if hybrid {
@@ -120,6 +201,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             if t_raster < hit.t {
                 // The raster normal already faces the viewer.
                 hit = TraceHit(t_raster, id - 1u, nd.xyz, nd.xyz, instances[id - 1u].material);
+                from_raster = true;
             }
         }
     }
@@ -145,7 +227,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         let p = o + d * hit.t;
         let n = facing_normal(hit, d);
-        let m = materials[hit.material];
+        var m = materials[hit.material];
+        if TEXTURES_ENABLED {
+            cone_width += cone_spread * hit.t;
+            if from_raster {
+                m.base_color = textureLoad(raster_albedo, pixel, 0).rgb;
+            } else if has_base_color_map(m) {
+                m.base_color = traced_albedo(hit, m, p, n, d, cone_width);
+            }
+            from_raster = false;
+            cone_spread += m.roughness;
+        }
         var reflectivity = m.reflectivity;
         if bounce == frame.max_bounces {
             reflectivity = 0.0;

@@ -83,8 +83,9 @@ pub(crate) fn append_mesh_blas(
     let tri_base = triangles.len() as u32;
     for &item in &blas.items {
         let t = &mesh.indices[item as usize * 3..item as usize * 3 + 3];
-        let p = |k: usize| mesh.positions[t[k] as usize].extend(0.0).to_array();
-        let n = |k: usize| mesh.normals[t[k] as usize].extend(0.0).to_array();
+        let uv = |k: usize| mesh.uvs.get(t[k] as usize).copied().unwrap_or_default();
+        let p = |k: usize| mesh.positions[t[k] as usize].extend(uv(k).x).to_array();
+        let n = |k: usize| mesh.normals[t[k] as usize].extend(uv(k).y).to_array();
         triangles.push(GpuTriangle {
             p0: p(0),
             p1: p(1),

@@ -6,8 +6,8 @@
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{
-    buffer_entries, read_only_storage_entry, read_write_storage_entry, storage_texture_entry,
-    texture_entry, uniform_entry,
+    buffer_entries, map_array_entry, read_only_storage_entry, read_write_storage_entry,
+    sampler_entry, storage_texture_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::TRACE_WORKGROUP;
@@ -19,7 +19,7 @@ pub struct TracePass {
     /// Pipeline variants by [`Variant::index`], each built the first time a
     /// scene needs it: code a scene cannot reach (CSG, triangle meshes) is
     /// compiled out, which the CPU driver runs markedly faster.
-    pipelines: [Option<wgpu::ComputePipeline>; 4],
+    pipelines: [Option<wgpu::ComputePipeline>; 8],
     variant: Variant,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
@@ -35,6 +35,7 @@ pub struct TracePass {
 struct Variant {
     csg: bool,
     meshes: bool,
+    textures: bool,
 }
 
 impl Variant {
@@ -42,16 +43,17 @@ impl Variant {
         Variant {
             csg: !scene.accel.csg_ops.is_empty(),
             meshes: !scene.accel.triangles.is_empty(),
+            textures: scene.uses_textures,
         }
     }
 
     fn index(self) -> usize {
-        usize::from(self.csg) + 2 * usize::from(self.meshes)
+        usize::from(self.csg) + 2 * usize::from(self.meshes) + 4 * usize::from(self.textures)
     }
 }
 
 /// The trace pipeline with only the code `variant` needs (overrides
-/// `CSG_ENABLED` and `MESHES_ENABLED`).
+/// `CSG_ENABLED`, `MESHES_ENABLED` and `TEXTURES_ENABLED`).
 fn trace_pipeline(
     gpu: &Gpu,
     layout: &wgpu::PipelineLayout,
@@ -68,6 +70,7 @@ fn trace_pipeline(
                 constants: &[
                     ("CSG_ENABLED", f64::from(u8::from(variant.csg))),
                     ("MESHES_ENABLED", f64::from(u8::from(variant.meshes))),
+                    ("TEXTURES_ENABLED", f64::from(u8::from(variant.textures))),
                 ],
                 ..Default::default()
             },
@@ -97,6 +100,10 @@ impl TracePass {
                             // CSG programs and leaves (shaders/lib/csg.wgsl).
                             read_only_storage_entry(9, c),
                             read_only_storage_entry(10, c),
+                            // Base-colour maps (shaders/lib/texture.wgsl).
+                            map_array_entry(11, c),
+                            sampler_entry(12, c),
+                            sampler_entry(13, c),
                         ],
                     });
             let float = wgpu::TextureSampleType::Float { filterable: false };
@@ -110,6 +117,7 @@ impl TracePass {
                             storage_texture_entry(2, COLOR_FORMAT),
                             storage_texture_entry(3, NORMAL_DEPTH_FORMAT),
                             storage_texture_entry(4, ID_FORMAT),
+                            texture_entry(5, float),
                         ],
                     });
             let layout = gpu
@@ -129,7 +137,7 @@ impl TracePass {
                         | wgpu::BufferUsages::COPY_DST,
                 });
             TracePass {
-                pipelines: [None, None, None, None],
+                pipelines: Default::default(),
                 variant: Variant::default(),
                 module,
                 pipeline_layout: layout,
@@ -171,7 +179,19 @@ impl TracePass {
             &scene.csg_ops,
             &scene.csg_leaves,
         ];
-        let entries = buffer_entries(&buffers);
+        let mut entries = buffer_entries(&buffers);
+        entries.push(wgpu::BindGroupEntry {
+            binding: 11,
+            resource: wgpu::BindingResource::TextureView(&scene.textures.view),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 12,
+            resource: wgpu::BindingResource::Sampler(&scene.textures.linear),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 13,
+            resource: wgpu::BindingResource::Sampler(&scene.textures.nearest),
+        });
         let scene_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace scene bind group"),
             layout: &self.scene_layout,
@@ -183,6 +203,7 @@ impl TracePass {
             &targets.traced.color,
             &targets.traced.normal_depth,
             &targets.traced.id,
+            &targets.raster_albedo,
         ]
         .map(|t| t.create_view(&Default::default()));
         let entries: Vec<wgpu::BindGroupEntry> = views

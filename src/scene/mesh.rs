@@ -4,7 +4,7 @@ use std::collections::HashMap;
 use std::io::Cursor;
 use std::path::Path;
 
-use glam::{Mat3, Mat4, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3};
 
 use super::SceneError;
 
@@ -20,6 +20,10 @@ pub struct Mesh {
     pub normals: Vec<Vec3>,
     /// Three indices into `positions` per triangle.
     pub indices: Vec<u32>,
+    /// Texture coordinates, one per position, or empty when the file has
+    /// none. (0, 0) is the image's top-left corner, v grows downwards (glTF's
+    /// convention; OBJ's v is flipped at load).
+    pub uvs: Vec<Vec2>,
     /// Where the mesh came from (a file path, or e.g. `"tessellated sphere"`).
     pub source: String,
 }
@@ -71,6 +75,13 @@ impl Mesh {
         {
             return Err(format!(
                 "mesh index {bad} is out of range ({} vertices)",
+                self.positions.len()
+            ));
+        }
+        if !self.uvs.is_empty() && self.uvs.len() != self.positions.len() {
+            return Err(format!(
+                "mesh has {} texture coordinates for {} positions",
+                self.uvs.len(),
                 self.positions.len()
             ));
         }
@@ -130,6 +141,8 @@ impl Mesh {
             ..Default::default()
         };
         let mut all_have_normals = true;
+        let mut uvs = Vec::new();
+        let mut any_uvs = false;
         for model in &models {
             let m = &model.mesh;
             let base = u32::try_from(mesh.positions.len())
@@ -140,6 +153,16 @@ impl Mesh {
                     .chunks_exact(3)
                     .map(|p| Vec3::new(p[0], p[1], p[2])),
             );
+            if m.texcoords.len() == count * 2 {
+                any_uvs = true;
+                uvs.extend(
+                    m.texcoords
+                        .chunks_exact(2)
+                        .map(|t| Vec2::new(t[0], 1.0 - t[1])),
+                );
+            } else {
+                uvs.extend(std::iter::repeat_n(Vec2::ZERO, count));
+            }
             if m.normals.len() == m.positions.len() {
                 mesh.normals.extend(
                     m.normals
@@ -163,6 +186,9 @@ impl Mesh {
         }
         if !all_have_normals {
             mesh.normals = smooth_normals(&mesh.positions, &mesh.indices);
+        }
+        if any_uvs {
+            mesh.uvs = uvs;
         }
         finish(mesh)
     }
@@ -277,6 +303,27 @@ fn append_gltf_primitive(
         return Err("NORMAL and POSITION attributes have different lengths".into());
     }
     let base = u32::try_from(mesh.positions.len()).map_err(|_| "too many vertices")?;
+    let tex_coord = primitive
+        .material()
+        .pbr_metallic_roughness()
+        .base_color_texture()
+        .map_or(0, |t| t.tex_coord());
+    let uvs: Vec<Vec2> = match reader.read_tex_coords(tex_coord) {
+        Some(tc) => tc.into_f32().map(Vec2::from).collect(),
+        None => Vec::new(),
+    };
+    if !uvs.is_empty() && uvs.len() != positions.len() {
+        return Err("TEXCOORD and POSITION attributes have different lengths".into());
+    }
+    // Keep `uvs` parallel to `positions` across primitives with and without.
+    if !uvs.is_empty() && mesh.uvs.len() < mesh.positions.len() {
+        mesh.uvs.resize(mesh.positions.len(), Vec2::ZERO);
+    }
+    if !mesh.uvs.is_empty() || !uvs.is_empty() {
+        let n = positions.len();
+        mesh.uvs.extend(uvs);
+        mesh.uvs.resize(mesh.positions.len() + n, Vec2::ZERO);
+    }
     mesh.positions.extend(positions);
     mesh.normals.extend(normals);
     mesh.indices.extend(indices.iter().map(|i| base + i));

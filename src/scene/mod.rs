@@ -99,6 +99,7 @@ mod mesh;
 mod overrides;
 mod shape;
 mod tessellate;
+mod texture;
 mod validate;
 
 use std::path::Path;
@@ -117,6 +118,10 @@ pub use mesh::{smooth_normals, Mesh};
 pub use overrides::OVERRIDE_KEYS;
 pub use shape::{PlaneKind, Shape};
 pub use tessellate::{tessellate, ROUND_SEGMENTS, SPHERE_RINGS, SPHERE_SEGMENTS};
+pub use texture::{
+    srgb_to_linear, BaseColorTexture, Pattern, Texture, TextureFilter, MAX_TEXTURES,
+    MAX_TEXTURE_SIZE,
+};
 pub use validate::{MAX_IMAGE_SIZE, MIN_TRANSFORM_DETERMINANT};
 
 /// A complete scene, validated (see [`Scene::validate`]).
