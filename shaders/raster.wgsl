@@ -25,6 +25,8 @@ struct VsOut {
     @location(5) object_pos: vec3<f32>,
     @location(6) object_normal: vec3<f32>,
     @location(7) uv: vec2<f32>,
+    // The mesh's own base-colour map layer, or NO_TEXTURE.
+    @location(8) @interpolate(flat) map: u32,
 }
 
 @vertex
@@ -32,6 +34,7 @@ fn vs_main(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
+    @location(3) map: u32,
     @builtin(instance_index) instance: u32,
 ) -> VsOut {
     // Field by field: copying the whole struct costs on CPU drivers.
@@ -46,6 +49,7 @@ fn vs_main(
     out.object_pos = position;
     out.object_normal = normal;
     out.uv = uv;
+    out.map = map;
     return out;
 }
 
@@ -88,7 +92,7 @@ fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
 }
 
 // The base colour at a fragment: the checker at its object-space point, or
-// the image at its texture coordinates (analytic shapes compute theirs from
+// the material's image, else the mesh's own, at its texture coordinates (analytic shapes compute theirs from
 // the object-space point), trilinear from screen derivatives. Derivatives
 // are taken before any branch (uniform control flow); across a longitude
 // seam the smaller of the derivatives of u and of u shifted by half a turn
@@ -118,7 +122,10 @@ fn raster_albedo(in: VsOut, m: GpuMaterial) -> vec3<f32> {
         return checker(m, in.object_pos);
     }
     if m.texture_layer != NO_TEXTURE {
-        return sample_map_grad(m, uv * m.uv_scale, dx * m.uv_scale, dy * m.uv_scale);
+        return sample_map_grad(m.texture_layer, m.texture_nearest != 0u, uv * m.uv_scale, dx * m.uv_scale, dy * m.uv_scale);
+    }
+    if in.map != NO_TEXTURE {
+        return sample_map_grad(in.map, false, uv * m.uv_scale, dx * m.uv_scale, dy * m.uv_scale);
     }
     return m.base_color;
 }

@@ -27,6 +27,8 @@
 @group(0) @binding(11) var base_color_maps: texture_2d_array<f32>;
 @group(0) @binding(12) var map_linear: sampler;
 @group(0) @binding(13) var map_nearest: sampler;
+// Per mesh triangle: its mesh's own base-colour map layer, or NO_TEXTURE.
+@group(0) @binding(14) var<storage, read> triangle_maps: array<u32>;
 @group(1) @binding(0) var raster_normal_depth: texture_2d<f32>;
 @group(1) @binding(1) var raster_id: texture_2d<u32>;
 @group(1) @binding(2) var out_color: texture_storage_2d<rgba16float, write>;
@@ -124,6 +126,15 @@ fn triangle_uv(tri: GpuTriangle, p: vec3<f32>) -> vec2<f32> {
 // level comes from the cone's footprint: the texture coordinates at two
 // points a footprint away on the tangent plane (across the ray, and along
 // its projection stretched by 1 / cos), as raster derivatives do per pixel.
+// The mesh's own map at a hit (NO_TEXTURE when the hit is not on a mesh
+// triangle or the triangle has none).
+fn mesh_map(hit: TraceHit) -> u32 {
+    if shapes[instances[hit.instance].shape].kind != SHAPE_MESH {
+        return NO_TEXTURE;
+    }
+    return triangle_maps[hit_triangle];
+}
+
 fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, width: f32) -> vec3<f32> {
     let inst = hit.instance;
     let to_object = instances[inst].object_from_world;
@@ -159,7 +170,10 @@ fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, n: vec3<f32>, d: v
         periodic = periodic_u(shape.kind, no);
     }
     let lod = footprint_lod(wrap_du(uv1 - uv0, periodic) * m.uv_scale, wrap_du(uv2 - uv0, periodic) * m.uv_scale);
-    return sample_map_level(m, uv0 * m.uv_scale, lod);
+    if m.texture_layer != NO_TEXTURE {
+        return sample_map_level(m.texture_layer, m.texture_nearest != 0u, uv0 * m.uv_scale, lod);
+    }
+    return sample_map_level(triangle_maps[hit_triangle], false, uv0 * m.uv_scale, lod);
 }
 
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
@@ -232,7 +246,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             cone_width += cone_spread * hit.t;
             if from_raster {
                 m.base_color = textureLoad(raster_albedo, pixel, 0).rgb;
-            } else if has_base_color_map(m) {
+            } else if has_base_color_map(m) || mesh_map(hit) != NO_TEXTURE {
                 m.base_color = traced_albedo(hit, m, p, n, d, cone_width);
             }
             from_raster = false;

@@ -80,20 +80,20 @@ fn has_base_color_map(m: GpuMaterial) -> bool {
     return m.checker_size > 0.0 || m.texture_layer != NO_TEXTURE;
 }
 
-// The image at uv with explicit gradients (raster: screen derivatives).
-fn sample_map_grad(m: GpuMaterial, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>) -> vec3<f32> {
-    if m.texture_nearest != 0u {
-        return textureSampleGrad(base_color_maps, map_nearest, uv, m.texture_layer, ddx, ddy).rgb;
+// Layer `layer` at uv with explicit gradients (raster: screen derivatives).
+fn sample_map_grad(layer: u32, nearest: bool, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>) -> vec3<f32> {
+    if nearest {
+        return textureSampleGrad(base_color_maps, map_nearest, uv, layer, ddx, ddy).rgb;
     }
-    return textureSampleGrad(base_color_maps, map_linear, uv, m.texture_layer, ddx, ddy).rgb;
+    return textureSampleGrad(base_color_maps, map_linear, uv, layer, ddx, ddy).rgb;
 }
 
-// The image at uv at mip level `lod` (trace: from the ray cone).
-fn sample_map_level(m: GpuMaterial, uv: vec2<f32>, lod: f32) -> vec3<f32> {
-    if m.texture_nearest != 0u {
-        return textureSampleLevel(base_color_maps, map_nearest, uv, m.texture_layer, lod).rgb;
+// Layer `layer` at uv at mip level `lod` (trace: from the ray cone).
+fn sample_map_level(layer: u32, nearest: bool, uv: vec2<f32>, lod: f32) -> vec3<f32> {
+    if nearest {
+        return textureSampleLevel(base_color_maps, map_nearest, uv, layer, lod).rgb;
     }
-    return textureSampleLevel(base_color_maps, map_linear, uv, m.texture_layer, lod).rgb;
+    return textureSampleLevel(base_color_maps, map_linear, uv, layer, lod).rgb;
 }
 
 // The mip level whose texels match a footprint whose two axes span the

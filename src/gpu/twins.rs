@@ -102,13 +102,16 @@ pub struct Vertex {
     /// Texture coordinates (meshes from files; analytic shapes compute
     /// theirs from the object-space position).
     pub uv: [f32; 2],
+    /// The mesh's own base-colour map: a texture array layer, or
+    /// [`NO_TEXTURE`].
+    pub map: u32,
 }
 
 impl Vertex {
     pub const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Uint32],
     };
 }
 

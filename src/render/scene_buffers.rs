@@ -64,6 +64,8 @@ pub struct SceneBuffers {
     /// CSG programs and leaves (one dummy element when there are none).
     pub csg_ops: wgpu::Buffer,
     pub csg_leaves: wgpu::Buffer,
+    /// Per trace triangle: its mesh's own map layer, or NO_TEXTURE.
+    pub triangle_maps: wgpu::Buffer,
     /// Base-colour images (a 1x1 white layer when there are none).
     pub textures: SceneTextures,
     /// Whether any material has an image or a pattern: passes compile
@@ -246,6 +248,7 @@ impl SceneBuffers {
             binding_limit,
         )?;
 
+        let textures = SceneTextures::upload(gpu, scene)?;
         let mut vertices: Vec<Vertex> = Vec::new();
         let mut indices: Vec<u32> = Vec::new();
         let mut draws = Vec::new();
@@ -287,11 +290,13 @@ impl SceneBuffers {
                 group_start = group_end;
             }
             triangle_count += (mesh.indices.len() / 3) as u64 * u64::from(end - first);
+            let layers = textures.mesh_layers(mesh);
             vertices.extend(mesh.positions.iter().zip(&mesh.normals).enumerate().map(
                 |(i, (p, n))| Vertex {
                     position: p.to_array(),
                     normal: n.to_array(),
                     uv: mesh.uvs.get(i).copied().unwrap_or_default().to_array(),
+                    map: SceneTextures::vertex_layer(&layers, mesh, i),
                 },
             ));
             indices.extend_from_slice(&mesh.indices);
@@ -312,6 +317,7 @@ impl SceneBuffers {
                 position: [0.0; 3],
                 normal: [0.0, 1.0, 0.0],
                 uv: [0.0; 2],
+                map: NO_TEXTURE,
             });
             indices.extend([0, 0, 0]);
         }
@@ -319,7 +325,6 @@ impl SceneBuffers {
         if gpu_instances.is_empty() {
             gpu_instances.push(instance_to_gpu(Mat4::IDENTITY, 0, 0));
         }
-        let textures = SceneTextures::upload(gpu, scene)?;
         let mut materials: Vec<GpuMaterial> = scene
             .materials
             .iter()
@@ -357,6 +362,23 @@ impl SceneBuffers {
         if csg_leaves.is_empty() {
             csg_leaves.push(bytemuck::Zeroable::zeroed());
         }
+        // Per triangle of the trace pass: its mesh's own map layer.
+        let mut shape_layers: Vec<Option<Vec<u32>>> = vec![None; scene.shapes.len()];
+        let mut triangle_maps: Vec<u32> = accel
+            .triangle_sources
+            .iter()
+            .map(|&(shape, vertex)| match scene.shapes.get(shape as usize) {
+                Some(Shape::Mesh(mesh)) if !mesh.textures.is_empty() => {
+                    let layers = shape_layers[shape as usize]
+                        .get_or_insert_with(|| textures.mesh_layers(mesh));
+                    SceneTextures::vertex_layer(layers, mesh, vertex as usize)
+                }
+                _ => NO_TEXTURE,
+            })
+            .collect();
+        if triangle_maps.is_empty() {
+            triangle_maps.push(NO_TEXTURE);
+        }
         let mut tlas_items = accel.tlas_items.clone();
         if tlas_items.is_empty() {
             tlas_items.push(0);
@@ -390,6 +412,7 @@ impl SceneBuffers {
                 .any(|i| i.world_from_object_end.is_some()),
             csg_ops: storage_buffer(gpu, "scene CSG programs", &csg_ops),
             csg_leaves: storage_buffer(gpu, "scene CSG leaves", &csg_leaves),
+            triangle_maps: storage_buffer(gpu, "scene triangle maps", &triangle_maps),
             accel,
             vertices: gpu
                 .device

@@ -5,8 +5,9 @@
 
 use std::sync::Arc;
 
+use crate::gpu::twins::NO_TEXTURE;
 use crate::gpu::{Gpu, GpuError};
-use crate::scene::{srgb_to_linear, Scene, Texture, MAX_TEXTURES, MAX_TEXTURE_SIZE};
+use crate::scene::{srgb_to_linear, Scene, Shape, Texture, MAX_TEXTURES, MAX_TEXTURE_SIZE};
 
 /// Format of the array: sampling decodes sRGB to linear.
 pub const MAP_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -21,25 +22,39 @@ pub struct SceneTextures {
     pub layer_size: u32,
 }
 
-/// Every distinct image the scene's materials use, in first-use order.
+/// Every distinct image the scene uses, in first-use order: the
+/// materials', then the meshes' own (in shape order).
 pub fn scene_images(scene: &Scene) -> Vec<Arc<Texture>> {
     let mut out: Vec<Arc<Texture>> = Vec::new();
+    let mut add = |t: &Arc<Texture>| {
+        if !out.iter().any(|o| Arc::ptr_eq(o, t)) {
+            out.push(t.clone());
+        }
+    };
     for m in &scene.materials {
         if let Some(t) = &m.base_color_texture {
-            if !out.iter().any(|o| Arc::ptr_eq(o, &t.texture)) {
-                out.push(t.texture.clone());
-            }
+            add(&t.texture);
+        }
+    }
+    for shape in &scene.shapes {
+        if let Shape::Mesh(mesh) = shape {
+            mesh.textures.iter().for_each(&mut add);
         }
     }
     out
 }
 
-/// Whether any material needs texture code (an image or a pattern).
+/// Whether the scene needs texture code: a material with an image or a
+/// pattern, or a mesh with its own maps.
 pub fn scene_uses_textures(scene: &Scene) -> bool {
     scene
         .materials
         .iter()
         .any(|m| m.base_color_texture.is_some() || m.base_color_pattern.is_some())
+        || scene
+            .shapes
+            .iter()
+            .any(|s| matches!(s, Shape::Mesh(m) if !m.textures.is_empty()))
 }
 
 impl SceneTextures {
@@ -159,6 +174,23 @@ impl SceneTextures {
             layers,
             layer_size: size,
         })
+    }
+
+    /// Array layer of each of `mesh`'s own textures.
+    pub fn mesh_layers(&self, mesh: &crate::scene::Mesh) -> Vec<u32> {
+        mesh.textures
+            .iter()
+            .map(|t| self.layer_of(t).unwrap_or(NO_TEXTURE))
+            .collect()
+    }
+
+    /// The GPU layer of each vertex's own map ([`NO_TEXTURE`] for none).
+    pub fn vertex_layer(layers: &[u32], mesh: &crate::scene::Mesh, vertex: usize) -> u32 {
+        mesh.vertex_textures
+            .get(vertex)
+            .and_then(|&t| layers.get(t as usize))
+            .copied()
+            .unwrap_or(NO_TEXTURE)
     }
 
     /// The array layer of `texture`, if the scene uses it.

@@ -104,6 +104,7 @@ impl TracePass {
                             map_array_entry(11, c),
                             sampler_entry(12, c),
                             sampler_entry(13, c),
+                            read_only_storage_entry(14, c),
                         ],
                     });
             let float = wgpu::TextureSampleType::Float { filterable: false };
@@ -191,6 +192,10 @@ impl TracePass {
         entries.push(wgpu::BindGroupEntry {
             binding: 13,
             resource: wgpu::BindingResource::Sampler(&scene.textures.nearest),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 14,
+            resource: scene.triangle_maps.as_entire_binding(),
         });
         let scene_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace scene bind group"),

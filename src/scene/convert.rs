@@ -145,6 +145,26 @@ fn convert(file: SceneFile, file_name: &str, meshes: &mut MeshLoader) -> Result<
         shapes.push(convert_shape(shape, &name, meshes, &material_names)?);
         shape_names.push(name);
     }
+    // Meshes' own maps share the texture array with the materials' images.
+    let mut images: Vec<Arc<Texture>> = meshes.textures.clone();
+    for (shape, name) in shapes.iter().zip(&shape_names) {
+        let Shape::Mesh(mesh) = shape else { continue };
+        for t in &mesh.textures {
+            if images.iter().any(|i| Arc::ptr_eq(i, t)) {
+                continue;
+            }
+            if images.len() >= MAX_TEXTURES {
+                return Err(SceneError::Texture {
+                    path: t.path.clone(),
+                    material: format!("{} (mesh of shape \"{name}\")", t.source),
+                    reason: format!(
+                        "too many textures: a scene may use at most {MAX_TEXTURES} images"
+                    ),
+                });
+            }
+            images.push(t.clone());
+        }
+    }
 
     let mut instances = Vec::new();
     for (i, instance) in file.instances.into_iter().enumerate() {

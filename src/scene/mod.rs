@@ -114,7 +114,7 @@ pub use file::{DEFAULT_AMBIENT, DEFAULT_BACKGROUND, SCENE_FORMAT_VERSION};
 pub use material::{
     parse_shading_model, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
 };
-pub use mesh::{smooth_normals, Mesh};
+pub use mesh::{smooth_normals, Mesh, NO_MESH_TEXTURE};
 pub use overrides::OVERRIDE_KEYS;
 pub use shape::{PlaneKind, Shape};
 pub use tessellate::{tessellate, ROUND_SEGMENTS, SPHERE_RINGS, SPHERE_SEGMENTS};
