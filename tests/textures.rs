@@ -460,3 +460,189 @@ fn texture_errors_name_the_file_and_the_material() {
     .unwrap();
     Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
 }
+
+/// A glTF quad written here: 2 triangles with TEXCOORD_1 (the material's
+/// texCoord set; TEXCOORD_0 is a decoy), an 8 x 8 image embedded as a
+/// data: URI and a baseColorFactor. Seen head-on as in the 4 x 4 test, the
+/// UV map is affine, so every texture point is weighted alike: the mean of
+/// the model's pixels is the mean of the bilinearly filtered image over one
+/// period, which with repeat wrapping is the texels' mean, times the
+/// factor. Sampling that at 32 x 32 pixel centres over 8 x 8 texels of a
+/// piecewise-linear function adds at most a few thousandths; the bound is
+/// 0.01 in linear per channel.
+#[test]
+fn gltf_texture_mean_colour_in_every_mode() {
+    use base64::Engine;
+    let gpu = gpu();
+    let dir = temp_dir("gltf");
+    let texel = |x: u32, y: u32| -> [u8; 4] {
+        let h = (x * 7 + y * 13) % 8;
+        [
+            (40 + h * 25) as u8,
+            (200 - h * 20) as u8,
+            (90 + (x * y) % 5 * 30) as u8,
+            255,
+        ]
+    };
+    let mut png = Vec::new();
+    image::RgbaImage::from_fn(8, 8, |x, y| image::Rgba(texel(x, y)))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let factor = [0.9f32, 0.6, 1.0];
+    // Buffer: positions, normals, decoy uvs, uvs, indices.
+    let corners = [[-1.0f32, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+    let mut bin: Vec<u8> = Vec::new();
+    for c in corners {
+        for v in [c[0], 0.0, c[1]] {
+            bin.extend(v.to_le_bytes());
+        }
+    }
+    for _ in corners {
+        for v in [0.0f32, 1.0, 0.0] {
+            bin.extend(v.to_le_bytes());
+        }
+    }
+    for _ in corners {
+        for v in [0.5f32, 0.5] {
+            bin.extend(v.to_le_bytes());
+        }
+    }
+    for c in corners {
+        for v in [(c[0] + 1.0) / 2.0, (c[1] + 1.0) / 2.0] {
+            bin.extend(v.to_le_bytes());
+        }
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend(i.to_le_bytes());
+    }
+    let b64 = base64::engine::general_purpose::STANDARD;
+    let gltf = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2, "TEXCOORD_1": 3}},
+                               "indices": 4, "material": 0}}]}}],
+  "materials": [{{"name": "painted", "pbrMetallicRoughness": {{
+      "baseColorTexture": {{"index": 0, "texCoord": 1}}, "baseColorFactor": [{}, {}, {}, 1.0]}}}}],
+  "textures": [{{"source": 0}}],
+  "images": [{{"uri": "data:image/png;base64,{}"}}],
+  "buffers": [{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 48}},
+                  {{"buffer": 0, "byteOffset": 96, "byteLength": 32}}, {{"buffer": 0, "byteOffset": 128, "byteLength": 32}},
+                  {{"buffer": 0, "byteOffset": 160, "byteLength": 12}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, 0, -1], "max": [1, 0, 1]}},
+    {{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"}},
+    {{"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"}},
+    {{"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC2"}},
+    {{"bufferView": 4, "componentType": 5123, "count": 6, "type": "SCALAR"}}]}}"#,
+        factor[0],
+        factor[1],
+        factor[2],
+        b64.encode(&png),
+        bin.len(),
+        b64.encode(&bin)
+    );
+    std::fs::write(dir.join("quad.gltf"), gltf).unwrap();
+    let fov = 2.0 * 0.5f64.atan().to_degrees();
+    let scene = load(
+        &dir,
+        &format!(
+            "(version: 1,
+              camera: (eye: (0.0, 4.0, 0.0), target: (0.0, 0.0, 0.0), up: (0.0, 0.0, -1.0),
+                       fov_y_deg: {fov}, width: 64, height: 64),
+              ambient: (1.0, 1.0, 1.0), background: (0.0, 0.0, 1.0),
+              materials: {{ \"m\": (base_color: (0.1, 0.1, 0.1), model: BlinnPhong) }},
+              shapes: {{ \"q\": Mesh(path: \"quad.gltf\") }},
+              instances: [(shape: \"q\", material: \"m\")])"
+        ),
+    );
+    let mut want = [0.0f32; 3];
+    for y in 0..8 {
+        for x in 0..8 {
+            for c in 0..3 {
+                want[c] += srgb_to_linear(texel(x, y)[c]) * factor[c] / 64.0;
+            }
+        }
+    }
+    for mode in [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace] {
+        let settings = RenderSettings {
+            mode,
+            ..pixel_centre_settings(&scene)
+        };
+        let (img, _) = render(&gpu, scene.clone(), settings);
+        let mut mean = [0.0f32; 3];
+        for py in 16..48 {
+            for px in 16..48 {
+                let p = rgb_at(&img, 64, px, py);
+                for c in 0..3 {
+                    mean[c] += srgb_to_linear(p[c]) / 1024.0;
+                }
+            }
+        }
+        for c in 0..3 {
+            assert!(
+                (mean[c] - want[c]).abs() < 0.01,
+                "{mode:?}: mean {mean:?}, texture mean times factor {want:?}"
+            );
+        }
+    }
+}
+
+/// An OBJ whose .mtl names a missing map_Kd: the error names the image and
+/// the OBJ material; with the image present the map is the mesh's own.
+#[test]
+fn obj_map_kd_is_loaded_and_a_missing_one_is_an_error() {
+    let dir = temp_dir("obj");
+    std::fs::write(
+        dir.join("q.obj"),
+        "mtllib q.mtl\nv -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 1\nvt 1 1\nvt 1 0\nvt 0 0\n\
+         usemtl brick\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("q.mtl"),
+        "newmtl brick\nKd 1 1 1\nmap_Kd brick.png\n",
+    )
+    .unwrap();
+    let ron = "(version: 1,
+        camera: (eye: (0.0, 4.0, 0.0), target: (0.0, 0.0, 0.0), up: (0.0, 0.0, -1.0),
+                 fov_y_deg: 40.0, width: 32, height: 32),
+        materials: { \"m\": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) },
+        shapes: { \"q\": Mesh(path: \"q.obj\") },
+        instances: [(shape: \"q\", material: \"m\")])";
+    let path = dir.join("scene.ron");
+    std::fs::write(&path, ron).unwrap();
+    let e = Scene::load(&path).unwrap_err().to_string();
+    assert!(e.contains("brick.png") && e.contains("\"brick\""), "{e}");
+
+    write_png(&dir.join("brick.png"), 2, 2, |x, _| {
+        [200, 50 * x as u8, 10, 255]
+    });
+    let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let celray::scene::Shape::Mesh(mesh) = &scene.shapes[0] else {
+        panic!("not a mesh")
+    };
+    assert_eq!(mesh.textures.len(), 1);
+    assert_eq!((mesh.textures[0].width, mesh.textures[0].height), (2, 2));
+    assert!(mesh.vertex_textures.iter().all(|&t| t == 0));
+    // OBJ's v grows upwards; celray's downwards from the top row.
+    assert_eq!(mesh.uvs.len(), mesh.positions.len());
+    assert!(mesh.uvs.iter().any(|uv| *uv == Vec2::new(0.0, 0.0)));
+}
+
+/// The Fox's map comes from its .glb's own buffer, the helmet's five from
+/// files beside it.
+#[test]
+fn shipped_models_bring_their_maps() {
+    let scene = Scene::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/scenes/textured_models.ron"
+    )))
+    .unwrap_or_else(|e| panic!("{e}"));
+    let maps = |name: &str| match &scene.shapes[scene.shape_id(name).unwrap()] {
+        celray::scene::Shape::Mesh(m) => (m.textures.len(), m.uvs.len() == m.positions.len()),
+        _ => panic!("{name} is not a mesh"),
+    };
+    assert_eq!(maps("fox"), (1, true));
+    assert_eq!(maps("helmet"), (5, true));
+}

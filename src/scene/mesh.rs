@@ -300,8 +300,9 @@ struct GltfMaps<'a> {
     path: &'a Path,
     base: &'a Path,
     buffers: &'a [gltf::buffer::Data],
-    /// glTF material index -> index into the mesh's textures.
-    loaded: HashMap<Option<usize>, u32>,
+    /// (glTF image index, baseColorFactor bits) -> index into the mesh's
+    /// textures: materials sharing an image and factor share the texture.
+    loaded: HashMap<(usize, [u32; 3]), u32>,
 }
 
 impl GltfMaps<'_> {
@@ -312,14 +313,18 @@ impl GltfMaps<'_> {
         mesh: &mut Mesh,
         material: &gltf::Material,
     ) -> Result<u32, SceneError> {
-        if let Some(&i) = self.loaded.get(&material.index()) {
-            return Ok(i);
-        }
         let pbr = material.pbr_metallic_roughness();
         let Some(info) = pbr.base_color_texture() else {
-            self.loaded.insert(material.index(), NO_MESH_TEXTURE);
             return Ok(NO_MESH_TEXTURE);
         };
+        let factor = pbr.base_color_factor();
+        let key = (
+            info.texture().source().index(),
+            [factor[0], factor[1], factor[2]].map(f32::to_bits),
+        );
+        if let Some(&i) = self.loaded.get(&key) {
+            return Ok(i);
+        }
         let name = material
             .name()
             .map(str::to_string)
@@ -383,13 +388,12 @@ impl GltfMaps<'_> {
         let mut texture = Texture::decode(&bytes, Path::new(&source), &name)?;
         texture.source = source;
         texture.path = image_path;
-        let factor = pbr.base_color_factor();
         if factor[..3] != [1.0, 1.0, 1.0] {
             multiply_linear(&mut texture, Vec3::new(factor[0], factor[1], factor[2]));
         }
         let index = mesh.textures.len() as u32;
         mesh.textures.push(Arc::new(texture));
-        self.loaded.insert(material.index(), index);
+        self.loaded.insert(key, index);
         Ok(index)
     }
 }
