@@ -390,6 +390,11 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             "depth of field + motion blur (anchor scene 2)",
             Scene::load(&dir.join("anchor_dof_motion.ron"))?,
         ),
+        (
+            "textured_models.ron",
+            "base-colour maps (helmet, fox, spot) + checker floor",
+            Scene::load(&dir.join("textured_models.ron"))?,
+        ),
     ];
     for (name, effect, scene) in cases {
         let st = time_frames(gpu, scene, RenderMode::Hybrid, args)?;

@@ -10,7 +10,8 @@ override TEXTURES_ENABLED: bool = true;
 const TAU: f32 = 6.283185307;
 const PI_F: f32 = 3.141592654;
 
-// Longitude in [0, 1): 0 at +x, growing towards +z, the seam at -x.
+// Longitude in [0, 1]: atan2(z, x) / 2 pi + 1/2, so 1/2 at +x, growing
+// towards +z, the seam (0 and 1) at -x.
 fn longitude(p: vec3<f32>) -> f32 {
     return atan2(p.z, p.x) / TAU + 0.5;
 }

@@ -150,7 +150,11 @@ impl RasterPass {
                     },
                 ),
                 attachment(&id, wgpu::Color::TRANSPARENT),
-                attachment(&albedo, wgpu::Color::TRANSPARENT),
+                if self.textures {
+                    attachment(&albedo, wgpu::Color::TRANSPARENT)
+                } else {
+                    None
+                },
             ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &depth,
@@ -248,7 +252,12 @@ fn raster_pipelines(
                         target(COLOR_FORMAT),
                         target(NORMAL_DEPTH_FORMAT),
                         target(ID_FORMAT),
-                        target(ALBEDO_FORMAT),
+                        // Only textured scenes' trace pass reads the albedo.
+                        if textures {
+                            target(ALBEDO_FORMAT)
+                        } else {
+                            None
+                        },
                     ],
                 }),
                 multiview_mask: None,
