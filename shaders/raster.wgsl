@@ -22,6 +22,17 @@ struct VsOut {
     @location(2) @interpolate(flat) instance: u32,
     @location(3) @interpolate(flat) material: u32,
     @location(4) @interpolate(flat) mirrored: u32,
+}
+
+// What textured scenes' fragments also need (vs_textured / fs_textured):
+// untextured scenes run vs_main / fs_main without these varyings.
+struct VsOutTextured {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world_pos: vec3<f32>,
+    @location(1) world_normal: vec3<f32>,
+    @location(2) @interpolate(flat) instance: u32,
+    @location(3) @interpolate(flat) material: u32,
+    @location(4) @interpolate(flat) mirrored: u32,
     @location(5) object_pos: vec3<f32>,
     @location(6) object_normal: vec3<f32>,
     @location(7) uv: vec2<f32>,
@@ -33,13 +44,30 @@ struct VsOut {
 fn vs_main(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
-    @location(2) uv: vec2<f32>,
-    @location(3) map: u32,
     @builtin(instance_index) instance: u32,
 ) -> VsOut {
     // Field by field: copying the whole struct costs on CPU drivers.
     let p = instances[instance].world_from_object * vec4<f32>(position, 1.0);
     var out: VsOut;
+    out.clip = frame.clip_from_world * p;
+    out.world_pos = p.xyz;
+    out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
+    out.instance = instance;
+    out.material = instances[instance].material;
+    out.mirrored = instances[instance].mirrored;
+    return out;
+}
+
+@vertex
+fn vs_textured(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    @location(3) map: u32,
+    @builtin(instance_index) instance: u32,
+) -> VsOutTextured {
+    let p = instances[instance].world_from_object * vec4<f32>(position, 1.0);
+    var out: VsOutTextured;
     out.clip = frame.clip_from_world * p;
     out.world_pos = p.xyz;
     out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
@@ -59,36 +87,50 @@ struct GBuffer {
     @location(1) normal_depth: vec4<f32>,
     // Instance index + 1; 0 is background.
     @location(2) id: u32,
+}
+
+struct GBufferTextured {
+    @location(0) color: vec4<f32>,
+    @location(1) normal_depth: vec4<f32>,
+    @location(2) id: u32,
     // The base colour after images and patterns (the trace pass shades
     // rasterized hits with it in hybrid mode).
     @location(3) albedo: vec4<f32>,
 }
 
-@fragment
-fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
-    var m = materials[in.material];
-    if TEXTURES_ENABLED {
-        m.base_color = raster_albedo(in, m);
-    }
-    var n = normalize(in.world_normal);
+// Shades one fragment with material m (its base colour already resolved).
+fn shade_fragment(m: GpuMaterial, world_pos: vec3<f32>, world_normal: vec3<f32>, instance: u32, mirrored: u32, front_facing: bool) -> GBuffer {
+    var n = normalize(world_normal);
     // Two-sided surfaces (planes) shade their back with the flipped normal;
     // a mirroring transform flips the winding, so flip the test with it.
-    if front_facing == (in.mirrored == 1u) {
+    if front_facing == (mirrored == 1u) {
         n = -n;
     }
     let eye = frame.eye_in_world.xyz;
-    let v = normalize(eye - in.world_pos);
+    let v = normalize(eye - world_pos);
     var c = shade_ambient(m, n, v, frame.ambient.rgb);
     for (var i = 0u; i < frame.light_count; i++) {
-        let ls = sample_light(lights[i], in.world_pos);
+        let ls = sample_light(lights[i], world_pos);
         c += shade_light(m, n, v, ls.to_light, ls.radiance);
     }
     var out: GBuffer;
     out.color = vec4<f32>(c, 1.0);
-    out.normal_depth = vec4<f32>(n, dot(in.world_pos - eye, frame.view_forward.xyz));
-    out.id = in.instance + 1u;
-    out.albedo = vec4<f32>(m.base_color, 1.0);
+    out.normal_depth = vec4<f32>(n, dot(world_pos - eye, frame.view_forward.xyz));
+    out.id = instance + 1u;
     return out;
+}
+
+@fragment
+fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
+    return shade_fragment(materials[in.material], in.world_pos, in.world_normal, in.instance, in.mirrored, front_facing);
+}
+
+@fragment
+fn fs_textured(in: VsOutTextured, @builtin(front_facing) front_facing: bool) -> GBufferTextured {
+    var m = materials[in.material];
+    m.base_color = raster_albedo(in, m);
+    let g = shade_fragment(m, in.world_pos, in.world_normal, in.instance, in.mirrored, front_facing);
+    return GBufferTextured(g.color, g.normal_depth, g.id, vec4<f32>(m.base_color, 1.0));
 }
 
 // The base colour at a fragment: the checker at its object-space point, or
@@ -97,7 +139,7 @@ fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
 // are taken before any branch (uniform control flow); across a longitude
 // seam the smaller of the derivatives of u and of u shifted by half a turn
 // is used, so the seam does not pick the coarsest mip.
-fn raster_albedo(in: VsOut, m: GpuMaterial) -> vec3<f32> {
+fn raster_albedo(in: VsOutTextured, m: GpuMaterial) -> vec3<f32> {
     let shape = shapes[instances[in.instance].shape];
     var uv = in.uv;
     var periodic = false;

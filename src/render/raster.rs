@@ -11,8 +11,9 @@ use crate::render::targets::{
 
 pub struct RasterPass {
     /// One pipeline per [`Cull`] mode (back, front, none), without and with
-    /// the texture code (override `TEXTURES_ENABLED`), each built the first
-    /// time a scene needs it.
+    /// the texture code (entry points `vs_main`/`fs_main` or
+    /// `vs_textured`/`fs_textured`), each built the first time a scene
+    /// needs it.
     pipelines: [Option<[wgpu::RenderPipeline; 3]>; 2],
     textures: bool,
     module: wgpu::ShaderModule,
@@ -198,14 +199,19 @@ impl RasterPass {
     }
 }
 
-/// The three cull-mode pipelines of one `TEXTURES_ENABLED` variant.
+/// The three cull-mode pipelines of one variant (with or without textures).
 fn raster_pipelines(
     gpu: &Gpu,
     pipeline_layout: &wgpu::PipelineLayout,
     module: &wgpu::ShaderModule,
     textures: bool,
 ) -> [wgpu::RenderPipeline; 3] {
-    let constants = [("TEXTURES_ENABLED", f64::from(u8::from(textures)))];
+    // Untextured scenes run the entry points without texture varyings.
+    let (vs, fs) = if textures {
+        ("vs_textured", "fs_textured")
+    } else {
+        ("vs_main", "fs_main")
+    };
     let target = |format| {
         Some(wgpu::ColorTargetState {
             format,
@@ -220,11 +226,8 @@ fn raster_pipelines(
                 layout: Some(pipeline_layout),
                 vertex: wgpu::VertexState {
                     module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        ..Default::default()
-                    },
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
                     buffers: &[Some(Vertex::LAYOUT)],
                 },
                 primitive: wgpu::PrimitiveState {
@@ -243,11 +246,8 @@ fn raster_pipelines(
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        ..Default::default()
-                    },
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
                     targets: &[
                         target(COLOR_FORMAT),
                         target(NORMAL_DEPTH_FORMAT),

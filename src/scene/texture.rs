@@ -19,7 +19,8 @@ pub const MAX_TEXTURES: usize = 16;
 pub const MAX_TEXTURE_SIZE: u32 = 2048;
 
 /// A decoded image: sRGB-encoded RGBA, 8 bits per channel, top row first.
-#[derive(Clone, PartialEq)]
+/// (`Eq` lets `Arc<Texture>` comparisons short-cut on pointer equality.)
+#[derive(Clone, PartialEq, Eq)]
 pub struct Texture {
     /// Where it came from, for messages and the panel: a file path.
     pub source: String,
