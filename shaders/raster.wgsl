@@ -135,7 +135,8 @@ fn fs_textured(in: VsOutTextured, @builtin(front_facing) front_facing: bool) -> 
 
 // The base colour at a fragment: the checker at its object-space point, or
 // the material's image, else the mesh's own, at its texture coordinates (analytic shapes compute theirs from
-// the object-space point), trilinear from screen derivatives. Derivatives
+// the object-space point), trilinear at the mip level of the fine screen
+// derivatives (differences within each 2x2 pixel quad). Derivatives
 // are taken before any branch (uniform control flow); across a longitude
 // seam the smaller of the derivatives of u and of u shifted by half a turn
 // is used, so the seam does not pick the coarsest mip.
@@ -148,10 +149,10 @@ fn raster_albedo(in: VsOutTextured, m: GpuMaterial) -> vec3<f32> {
         periodic = periodic_u(shape.kind, in.object_normal);
     }
     let shifted = vec2<f32>(fract(uv.x + 0.5), uv.y);
-    let dx0 = dpdx(uv);
-    let dy0 = dpdy(uv);
-    let dx1 = dpdx(shifted);
-    let dy1 = dpdy(shifted);
+    let dx0 = dpdxFine(uv);
+    let dy0 = dpdyFine(uv);
+    let dx1 = dpdxFine(shifted);
+    let dy1 = dpdyFine(shifted);
     var dx = dx0;
     var dy = dy0;
     if periodic && abs(dx1.x) < abs(dx0.x) {
@@ -160,14 +161,17 @@ fn raster_albedo(in: VsOutTextured, m: GpuMaterial) -> vec3<f32> {
     if periodic && abs(dy1.x) < abs(dy0.x) {
         dy.x = dy1.x;
     }
+    // The mip level by the same formula as the trace pass's (which uses the
+    // same quad-pairs of neighbouring pixels), so hybrid agrees with raytrace.
+    let lod = footprint_lod(dx * m.uv_scale, dy * m.uv_scale);
     if m.checker_size > 0.0 {
         return checker(m, in.object_pos);
     }
     if m.texture_layer != NO_TEXTURE {
-        return sample_map_grad(m.texture_layer, m.texture_nearest != 0u, uv * m.uv_scale, dx * m.uv_scale, dy * m.uv_scale);
+        return sample_map_level(m.texture_layer, m.texture_nearest != 0u, uv * m.uv_scale, lod);
     }
     if in.map != NO_TEXTURE {
-        return sample_map_grad(in.map, false, uv * m.uv_scale, dx * m.uv_scale, dy * m.uv_scale);
+        return sample_map_level(in.map, false, uv * m.uv_scale, lod);
     }
     return m.base_color;
 }

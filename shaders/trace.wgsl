@@ -121,11 +121,6 @@ fn triangle_uv(tri: GpuTriangle, p: vec3<f32>) -> vec2<f32> {
         + vec2<f32>(tri.p2.w, tri.n2.w) * b2;
 }
 
-// The base colour at a traced hit at world point p (facing normal n), seen
-// along unit direction d through a ray cone `width` wide there. The mip
-// level comes from the cone's footprint: the texture coordinates at two
-// points a footprint away on the tangent plane (across the ray, and along
-// its projection stretched by 1 / cos), as raster derivatives do per pixel.
 // The mesh's own map at a hit (NO_TEXTURE when the hit is not on a mesh
 // triangle or the triangle has none).
 fn mesh_map(hit: TraceHit) -> u32 {
@@ -135,7 +130,13 @@ fn mesh_map(hit: TraceHit) -> u32 {
     return triangle_maps[hit_triangle];
 }
 
-fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, n: vec3<f32>, d: vec3<f32>, width: f32) -> vec3<f32> {
+// The base colour at a traced hit at world point p (outward normal in
+// hit.normal). The mip level comes from the footprint: the texture
+// coordinates at p + e1 and p + e2 (world offsets on the tangent plane:
+// where the neighbouring pixels' rays meet it for primary rays, the ray
+// cone's axes for reflected ones), the larger step deciding, as raster
+// derivatives do per pixel.
+fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>) -> vec3<f32> {
     let inst = hit.instance;
     let to_object = instances[inst].object_from_world;
     let po = (to_object * vec4<f32>(p, 1.0)).xyz;
@@ -143,16 +144,8 @@ fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, n: vec3<f32>, d: v
         return checker(m, po);
     }
     let no = (transpose(instances[inst].world_from_object) * vec4<f32>(hit.normal, 0.0)).xyz;
-    let cos_t = max(abs(dot(d, n)), 0.05);
-    var along = d - n * dot(d, n);
-    if dot(along, along) < 1e-12 {
-        along = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
-        along = along - n * dot(along, n);
-    }
-    along = normalize(along);
-    let across = cross(n, along);
-    let q1 = (to_object * vec4<f32>(p + along * (width / cos_t), 1.0)).xyz;
-    let q2 = (to_object * vec4<f32>(p + across * width, 1.0)).xyz;
+    let q1 = (to_object * vec4<f32>(p + e1, 1.0)).xyz;
+    let q2 = (to_object * vec4<f32>(p + e2, 1.0)).xyz;
     let shape = shapes[instances[inst].shape];
     var uv0: vec2<f32>;
     var uv1: vec2<f32>;
@@ -176,6 +169,29 @@ fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, n: vec3<f32>, d: v
     return sample_map_level(triangle_maps[hit_triangle], false, uv0 * m.uv_scale, lod);
 }
 
+// Where the ray (o, dn) meets the tangent plane at p with normal n, as an
+// offset from p (primary-ray differentials).
+fn plane_offset(o: vec3<f32>, dn: vec3<f32>, p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let den = dot(dn, n);
+    if abs(den) < 1e-6 {
+        return vec3<f32>(0.0);
+    }
+    return o + dn * (dot(p - o, n) / den) - p;
+}
+
+// The ray cone's footprint axes at a hit: `width` across the ray, stretched
+// by 1 / cos along the ray's projection on the surface.
+fn cone_axes(d: vec3<f32>, n: vec3<f32>, width: f32) -> array<vec3<f32>, 2> {
+    let cos_t = max(abs(dot(d, n)), 0.05);
+    var along = d - n * dot(d, n);
+    if dot(along, along) < 1e-12 {
+        along = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
+        along = along - n * dot(along, n);
+    }
+    along = normalize(along);
+    return array<vec3<f32>, 2>(along * (width / cos_t), cross(n, along) * width);
+}
+
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
@@ -197,12 +213,23 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
 
     // The ray cone for mip selection: its spread is the angle between
     // neighbouring pixels' rays; reflections widen it by the roughness.
+    // Primary hits use the neighbouring pixels' rays (ray differentials).
     var cone_spread = 0.0;
     var cone_width = 0.0;
+    var d_dx = d;
+    var d_dy = d;
     if TEXTURES_ENABLED {
-        let far_dx = frame.world_from_clip * vec4<f32>(ndc + vec2<f32>(2.0 / size.x, 0.0), 1.0, 1.0);
-        cone_spread = length(normalize(far_dx.xyz / far_dx.w - o) - d);
+        // The other pixel of this pixel's 2x2 quad in x and in y: the pair
+        // the raster pass's fine derivatives difference.
+        let step_x = select(2.0, -2.0, (gid.x & 1u) == 1u) / size.x;
+        let step_y = select(2.0, -2.0, (gid.y & 1u) == 1u) / size.y;
+        let far_dx = frame.world_from_clip * vec4<f32>(ndc + vec2<f32>(step_x, 0.0), 1.0, 1.0);
+        let far_dy = frame.world_from_clip * vec4<f32>(ndc - vec2<f32>(0.0, step_y), 1.0, 1.0);
+        d_dx = normalize(far_dx.xyz / far_dx.w - o);
+        d_dy = normalize(far_dy.xyz / far_dy.w - o);
+        cone_spread = length(d_dx - d);
     }
+    let primary_o = o;
     var from_raster = false;
 
     let hybrid = frame.mode == RENDER_MODE_HYBRID;
@@ -247,7 +274,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             if from_raster {
                 m.base_color = textureLoad(raster_albedo, pixel, 0).rgb;
             } else if has_base_color_map(m) || mesh_map(hit) != NO_TEXTURE {
-                m.base_color = traced_albedo(hit, m, p, n, d, cone_width);
+                var axes = cone_axes(d, n, cone_width);
+                if bounce == 0u {
+                    // On the surface's own plane (the geometric normal), where
+                    // the raster pass's neighbouring fragments lie.
+                    axes[0] = plane_offset(primary_o, d_dx, p, hit.geometric);
+                    axes[1] = plane_offset(primary_o, d_dy, p, hit.geometric);
+                }
+                m.base_color = traced_albedo(hit, m, p, axes[0], axes[1]);
             }
             from_raster = false;
             cone_spread += m.roughness;

@@ -81,14 +81,6 @@ fn has_base_color_map(m: GpuMaterial) -> bool {
     return m.checker_size > 0.0 || m.texture_layer != NO_TEXTURE;
 }
 
-// Layer `layer` at uv with explicit gradients (raster: screen derivatives).
-fn sample_map_grad(layer: u32, nearest: bool, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>) -> vec3<f32> {
-    if nearest {
-        return textureSampleGrad(base_color_maps, map_nearest, uv, layer, ddx, ddy).rgb;
-    }
-    return textureSampleGrad(base_color_maps, map_linear, uv, layer, ddx, ddy).rgb;
-}
-
 // Layer `layer` at uv at mip level `lod` (trace: from the ray cone).
 fn sample_map_level(layer: u32, nearest: bool, uv: vec2<f32>, lod: f32) -> vec3<f32> {
     if nearest {

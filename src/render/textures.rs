@@ -1,7 +1,7 @@
 //! Base-colour images on the GPU: one 2D texture array (the CPU driver has
 //! no binding arrays), every image resampled to one square layer size with
 //! a full mip chain built on the CPU in linear light, plus a trilinear
-//! (anisotropic where the adapter allows) and a nearest sampler.
+//! and a nearest sampler.
 
 use std::sync::Arc;
 
@@ -163,7 +163,9 @@ impl SceneTextures {
                 "base-colour sampler (trilinear)",
                 wgpu::FilterMode::Linear,
                 wgpu::MipmapFilterMode::Linear,
-                16,
+                // Isotropic: the trace pass picks one mip level per hit, and
+                // hybrid mode must agree with raytrace mode.
+                1,
             ),
             nearest: sampler(
                 "base-colour sampler (nearest)",
