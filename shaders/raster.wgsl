@@ -3,11 +3,17 @@
 
 #include "lib/types.wgsl"
 #include "lib/shading.wgsl"
+#include "lib/intersect.wgsl"
+#include "lib/texture.wgsl"
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
 @group(0) @binding(2) var<storage, read> materials: array<GpuMaterial>;
 @group(0) @binding(3) var<storage, read> lights: array<GpuLight>;
+@group(0) @binding(4) var<storage, read> shapes: array<GpuShape>;
+@group(0) @binding(5) var base_color_maps: texture_2d_array<f32>;
+@group(0) @binding(6) var map_linear: sampler;
+@group(0) @binding(7) var map_nearest: sampler;
 
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
@@ -16,18 +22,22 @@ struct VsOut {
     @location(2) @interpolate(flat) instance: u32,
     @location(3) @interpolate(flat) material: u32,
     @location(4) @interpolate(flat) mirrored: u32,
-    // The material's shading fields, read once per vertex and passed flat:
-    // a fragment reading them from the storage buffer costs the CPU driver
-    // a gather per field per fragment (it cannot tell that all fragments of
-    // a triangle share the material).
-    @location(5) @interpolate(flat) base_shininess: vec4<f32>,
-    @location(6) @interpolate(flat) specular: vec4<f32>,
-    @location(7) @interpolate(flat) rim: vec4<f32>,
-    @location(8) @interpolate(flat) model_bands: vec2<u32>,
-    @location(9) @interpolate(flat) thresholds0: vec4<f32>,
-    @location(10) @interpolate(flat) thresholds1: vec4<f32>,
-    @location(11) @interpolate(flat) thresholds2: vec4<f32>,
-    @location(12) @interpolate(flat) thresholds3: vec4<f32>,
+}
+
+// What textured scenes' fragments also need (vs_textured / fs_textured):
+// untextured scenes run vs_main / fs_main without these varyings.
+struct VsOutTextured {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world_pos: vec3<f32>,
+    @location(1) world_normal: vec3<f32>,
+    @location(2) @interpolate(flat) instance: u32,
+    @location(3) @interpolate(flat) material: u32,
+    @location(4) @interpolate(flat) mirrored: u32,
+    @location(5) object_pos: vec3<f32>,
+    @location(6) object_normal: vec3<f32>,
+    @location(7) uv: vec2<f32>,
+    // The mesh's own base-colour map layer, or NO_TEXTURE.
+    @location(8) @interpolate(flat) map: u32,
 }
 
 @vertex
@@ -43,17 +53,31 @@ fn vs_main(
     out.world_pos = p.xyz;
     out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
     out.instance = instance;
-    let material = instances[instance].material;
-    out.material = material;
+    out.material = instances[instance].material;
     out.mirrored = instances[instance].mirrored;
-    out.base_shininess = vec4<f32>(materials[material].base_color, materials[material].shininess);
-    out.specular = vec4<f32>(materials[material].specular_color, materials[material].specular_threshold);
-    out.rim = vec4<f32>(materials[material].rim_color, materials[material].rim_threshold);
-    out.model_bands = vec2<u32>(materials[material].model, materials[material].band_count);
-    out.thresholds0 = materials[material].thresholds[0];
-    out.thresholds1 = materials[material].thresholds[1];
-    out.thresholds2 = materials[material].thresholds[2];
-    out.thresholds3 = materials[material].thresholds[3];
+    return out;
+}
+
+@vertex
+fn vs_textured(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    @location(3) map: u32,
+    @builtin(instance_index) instance: u32,
+) -> VsOutTextured {
+    let p = instances[instance].world_from_object * vec4<f32>(position, 1.0);
+    var out: VsOutTextured;
+    out.clip = frame.clip_from_world * p;
+    out.world_pos = p.xyz;
+    out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
+    out.instance = instance;
+    out.material = instances[instance].material;
+    out.mirrored = instances[instance].mirrored;
+    out.object_pos = position;
+    out.object_normal = normal;
+    out.uv = uv;
+    out.map = map;
     return out;
 }
 
@@ -65,33 +89,89 @@ struct GBuffer {
     @location(2) id: u32,
 }
 
-@fragment
-fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
-    // The fields shading reads, from the flat inputs; the rest are unused.
-    let m = GpuMaterial(
-        in.base_shininess.xyz, in.base_shininess.w,
-        in.specular.xyz, in.specular.w,
-        vec3<f32>(0.0), 0.0,
-        in.rim.xyz, in.rim.w,
-        in.model_bands.x, in.model_bands.y, 0.0, 0.0,
-        array<vec4<f32>, 4>(in.thresholds0, in.thresholds1, in.thresholds2, in.thresholds3),
-    );
-    var n = normalize(in.world_normal);
+struct GBufferTextured {
+    @location(0) color: vec4<f32>,
+    @location(1) normal_depth: vec4<f32>,
+    @location(2) id: u32,
+    // The base colour after images and patterns (the trace pass shades
+    // rasterized hits with it in hybrid mode).
+    @location(3) albedo: vec4<f32>,
+}
+
+// Shades one fragment with material m (its base colour already resolved).
+fn shade_fragment(m: GpuMaterial, world_pos: vec3<f32>, world_normal: vec3<f32>, instance: u32, mirrored: u32, front_facing: bool) -> GBuffer {
+    var n = normalize(world_normal);
     // Two-sided surfaces (planes) shade their back with the flipped normal;
     // a mirroring transform flips the winding, so flip the test with it.
-    if front_facing == (in.mirrored == 1u) {
+    if front_facing == (mirrored == 1u) {
         n = -n;
     }
     let eye = frame.eye_in_world.xyz;
-    let v = normalize(eye - in.world_pos);
+    let v = normalize(eye - world_pos);
     var c = shade_ambient(m, n, v, frame.ambient.rgb);
     for (var i = 0u; i < frame.light_count; i++) {
-        let ls = sample_light(lights[i], in.world_pos);
+        let ls = sample_light(lights[i], world_pos);
         c += shade_light(m, n, v, ls.to_light, ls.radiance);
     }
     var out: GBuffer;
     out.color = vec4<f32>(c, 1.0);
-    out.normal_depth = vec4<f32>(n, dot(in.world_pos - eye, frame.view_forward.xyz));
-    out.id = in.instance + 1u;
+    out.normal_depth = vec4<f32>(n, dot(world_pos - eye, frame.view_forward.xyz));
+    out.id = instance + 1u;
     return out;
+}
+
+@fragment
+fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
+    return shade_fragment(materials[in.material], in.world_pos, in.world_normal, in.instance, in.mirrored, front_facing);
+}
+
+@fragment
+fn fs_textured(in: VsOutTextured, @builtin(front_facing) front_facing: bool) -> GBufferTextured {
+    var m = materials[in.material];
+    m.base_color = raster_albedo(in, m);
+    let g = shade_fragment(m, in.world_pos, in.world_normal, in.instance, in.mirrored, front_facing);
+    return GBufferTextured(g.color, g.normal_depth, g.id, vec4<f32>(m.base_color, 1.0));
+}
+
+// The base colour at a fragment: the checker at its object-space point, or
+// the material's image, else the mesh's own, at its texture coordinates (analytic shapes compute theirs from
+// the object-space point), trilinear at the mip level of the fine screen
+// derivatives (differences within each 2x2 pixel quad). Derivatives
+// are taken before any branch (uniform control flow); across a longitude
+// seam the smaller of the derivatives of u and of u shifted by half a turn
+// is used, so the seam does not pick the coarsest mip.
+fn raster_albedo(in: VsOutTextured, m: GpuMaterial) -> vec3<f32> {
+    let shape = shapes[instances[in.instance].shape];
+    var uv = in.uv;
+    var periodic = false;
+    if shape.kind != SHAPE_MESH {
+        uv = analytic_uv(shape.kind, shape.params, in.object_pos, in.object_normal);
+        periodic = periodic_u(shape.kind, in.object_normal);
+    }
+    let shifted = vec2<f32>(fract(uv.x + 0.5), uv.y);
+    let dx0 = dpdxFine(uv);
+    let dy0 = dpdyFine(uv);
+    let dx1 = dpdxFine(shifted);
+    let dy1 = dpdyFine(shifted);
+    var dx = dx0;
+    var dy = dy0;
+    if periodic && abs(dx1.x) < abs(dx0.x) {
+        dx.x = dx1.x;
+    }
+    if periodic && abs(dy1.x) < abs(dy0.x) {
+        dy.x = dy1.x;
+    }
+    // The mip level by the same formula as the trace pass's (which uses the
+    // same quad-pairs of neighbouring pixels), so hybrid agrees with raytrace.
+    let lod = footprint_lod(dx * m.uv_scale, dy * m.uv_scale);
+    if m.checker_size > 0.0 {
+        return checker(m, in.object_pos);
+    }
+    if m.texture_layer != NO_TEXTURE {
+        return sample_map_level(m.texture_layer, m.texture_nearest != 0u, uv * m.uv_scale, lod);
+    }
+    if in.map != NO_TEXTURE {
+        return sample_map_level(in.map, false, uv * m.uv_scale, lod);
+    }
+    return m.base_color;
 }

@@ -10,6 +10,7 @@
 #include "lib/traverse.wgsl"
 #include "lib/csg.wgsl"
 #include "lib/random.wgsl"
+#include "lib/texture.wgsl"
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
@@ -23,11 +24,18 @@
 @group(0) @binding(8) var<storage, read_write> stats: array<atomic<u32>>;
 @group(0) @binding(9) var<storage, read> csg_ops: array<GpuCsgOp>;
 @group(0) @binding(10) var<storage, read> csg_leaves: array<GpuCsgLeaf>;
+@group(0) @binding(11) var base_color_maps: texture_2d_array<f32>;
+@group(0) @binding(12) var map_linear: sampler;
+@group(0) @binding(13) var map_nearest: sampler;
+// Per mesh triangle: its mesh's own base-colour map layer, or NO_TEXTURE.
+@group(0) @binding(14) var<storage, read> triangle_maps: array<u32>;
 @group(1) @binding(0) var raster_normal_depth: texture_2d<f32>;
 @group(1) @binding(1) var raster_id: texture_2d<u32>;
 @group(1) @binding(2) var out_color: texture_storage_2d<rgba16float, write>;
 @group(1) @binding(3) var out_normal_depth: texture_storage_2d<rgba32float, write>;
 @group(1) @binding(4) var out_id: texture_storage_2d<r32uint, write>;
+// The raster pass's base colour (hybrid: rasterized hits).
+@group(1) @binding(5) var raster_albedo: texture_2d<f32>;
 
 const TRACE_WORKGROUP: u32 = 8u;
 // Loop iterations one pixel may spend on traversal, all rays together:
@@ -100,6 +108,99 @@ fn glossy_direction(w: vec3<f32>, n: vec3<f32>, roughness: f32, pixel_key: u32, 
     return w;
 }
 
+// Texture coordinates of object-space point p on a mesh triangle: the
+// corners' coordinates weighted by p's barycentric coordinates (points off
+// the triangle extrapolate linearly, which the footprint needs).
+fn triangle_uv(tri: GpuTriangle, p: vec3<f32>) -> vec2<f32> {
+    let e1 = tri.p1.xyz - tri.p0.xyz;
+    let e2 = tri.p2.xyz - tri.p0.xyz;
+    let r = p - tri.p0.xyz;
+    let d11 = dot(e1, e1);
+    let d12 = dot(e1, e2);
+    let d22 = dot(e2, e2);
+    let r1 = dot(r, e1);
+    let r2 = dot(r, e2);
+    let den = d11 * d22 - d12 * d12;
+    if den == 0.0 {
+        return vec2<f32>(tri.p0.w, tri.n0.w);
+    }
+    let b1 = (d22 * r1 - d12 * r2) / den;
+    let b2 = (d11 * r2 - d12 * r1) / den;
+    return vec2<f32>(tri.p0.w, tri.n0.w) * (1.0 - b1 - b2) + vec2<f32>(tri.p1.w, tri.n1.w) * b1
+        + vec2<f32>(tri.p2.w, tri.n2.w) * b2;
+}
+
+// The mesh's own map at a hit (NO_TEXTURE when the hit is not on a mesh
+// triangle or the triangle has none).
+fn mesh_map(hit: TraceHit) -> u32 {
+    if shapes[instances[hit.instance].shape].kind != SHAPE_MESH {
+        return NO_TEXTURE;
+    }
+    return triangle_maps[hit_triangle];
+}
+
+// The base colour at a traced hit at world point p (outward normal in
+// hit.normal). The mip level comes from the footprint: the texture
+// coordinates at p + e1 and p + e2 (world offsets on the tangent plane:
+// where the neighbouring pixels' rays meet it for primary rays, the ray
+// cone's axes for reflected ones), the larger step deciding, as raster
+// derivatives do per pixel.
+fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>) -> vec3<f32> {
+    let inst = hit.instance;
+    let to_object = instances[inst].object_from_world;
+    let po = (to_object * vec4<f32>(p, 1.0)).xyz;
+    if m.checker_size > 0.0 {
+        return checker(m, po);
+    }
+    let no = (transpose(instances[inst].world_from_object) * vec4<f32>(hit.normal, 0.0)).xyz;
+    let q1 = (to_object * vec4<f32>(p + e1, 1.0)).xyz;
+    let q2 = (to_object * vec4<f32>(p + e2, 1.0)).xyz;
+    let shape = shapes[instances[inst].shape];
+    var uv0: vec2<f32>;
+    var uv1: vec2<f32>;
+    var uv2: vec2<f32>;
+    var periodic = false;
+    if shape.kind == SHAPE_MESH {
+        let tri = triangles[hit_triangle];
+        uv0 = triangle_uv(tri, po);
+        uv1 = triangle_uv(tri, q1);
+        uv2 = triangle_uv(tri, q2);
+    } else {
+        uv0 = analytic_uv(shape.kind, shape.params, po, no);
+        uv1 = analytic_uv(shape.kind, shape.params, q1, no);
+        uv2 = analytic_uv(shape.kind, shape.params, q2, no);
+        periodic = periodic_u(shape.kind, no);
+    }
+    let lod = footprint_lod(wrap_du(uv1 - uv0, periodic) * m.uv_scale, wrap_du(uv2 - uv0, periodic) * m.uv_scale);
+    if m.texture_layer != NO_TEXTURE {
+        return sample_map_level(m.texture_layer, m.texture_nearest != 0u, uv0 * m.uv_scale, lod);
+    }
+    return sample_map_level(triangle_maps[hit_triangle], false, uv0 * m.uv_scale, lod);
+}
+
+// Where the ray (o, dn) meets the tangent plane at p with normal n, as an
+// offset from p (primary-ray differentials).
+fn plane_offset(o: vec3<f32>, dn: vec3<f32>, p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let den = dot(dn, n);
+    if abs(den) < 1e-6 {
+        return vec3<f32>(0.0);
+    }
+    return o + dn * (dot(p - o, n) / den) - p;
+}
+
+// The ray cone's footprint axes at a hit: `width` across the ray, stretched
+// by 1 / cos along the ray's projection on the surface.
+fn cone_axes(d: vec3<f32>, n: vec3<f32>, width: f32) -> array<vec3<f32>, 2> {
+    let cos_t = max(abs(dot(d, n)), 0.05);
+    var along = d - n * dot(d, n);
+    if dot(along, along) < 1e-12 {
+        along = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
+        along = along - n * dot(along, n);
+    }
+    along = normalize(along);
+    return array<vec3<f32>, 2>(along * (width / cos_t), cross(n, along) * width);
+}
+
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
@@ -119,6 +220,27 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let eye = frame.eye_in_world.xyz;
     let forward = frame.view_forward.xyz;
 
+    // The ray cone for mip selection: its spread is the angle between
+    // neighbouring pixels' rays; reflections widen it by the roughness.
+    // Primary hits use the neighbouring pixels' rays (ray differentials).
+    var cone_spread = 0.0;
+    var cone_width = 0.0;
+    var d_dx = d;
+    var d_dy = d;
+    if TEXTURES_ENABLED {
+        // The other pixel of this pixel's 2x2 quad in x and in y: the pair
+        // the raster pass's fine derivatives difference.
+        let step_x = select(2.0, -2.0, (gid.x & 1u) == 1u) / size.x;
+        let step_y = select(2.0, -2.0, (gid.y & 1u) == 1u) / size.y;
+        let far_dx = frame.world_from_clip * vec4<f32>(ndc + vec2<f32>(step_x, 0.0), 1.0, 1.0);
+        let far_dy = frame.world_from_clip * vec4<f32>(ndc - vec2<f32>(0.0, step_y), 1.0, 1.0);
+        d_dx = normalize(far_dx.xyz / far_dx.w - o);
+        d_dy = normalize(far_dy.xyz / far_dy.w - o);
+        cone_spread = length(d_dx - d);
+    }
+    let primary_o = o;
+    var from_raster = false;
+
     let hybrid = frame.mode == RENDER_MODE_HYBRID;
     var hit = trace(o, d, 0.0, 3.0e38, hybrid, false);
     if hybrid {
@@ -129,6 +251,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             if t_raster < hit.t {
                 // The raster normal already faces the viewer.
                 hit = TraceHit(t_raster, id - 1u, nd.xyz, nd.xyz, instances[id - 1u].material);
+                from_raster = true;
             }
         }
     }
@@ -154,7 +277,24 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         let p = o + d * hit.t;
         let n = facing_normal(hit, d);
-        let m = materials[hit.material];
+        var m = materials[hit.material];
+        if TEXTURES_ENABLED {
+            cone_width += cone_spread * hit.t;
+            if from_raster {
+                m.base_color = textureLoad(raster_albedo, pixel, 0).rgb;
+            } else if has_base_color_map(m) || mesh_map(hit) != NO_TEXTURE {
+                var axes = cone_axes(d, n, cone_width);
+                if bounce == 0u {
+                    // On the surface's own plane (the geometric normal), where
+                    // the raster pass's neighbouring fragments lie.
+                    axes[0] = plane_offset(primary_o, d_dx, p, hit.geometric);
+                    axes[1] = plane_offset(primary_o, d_dy, p, hit.geometric);
+                }
+                m.base_color = traced_albedo(hit, m, p, axes[0], axes[1]);
+            }
+            from_raster = false;
+            cone_spread += m.roughness;
+        }
         var reflectivity = m.reflectivity;
         if !REFLECTIONS_ENABLED || bounce == frame.max_bounces {
             reflectivity = 0.0;

@@ -504,6 +504,12 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
             "anchor_dof_motion",
             Scene::load(&dir.join("anchor_dof_motion.ron"))?,
         ),
+        (
+            "textured_models.ron",
+            "base-colour maps (helmet, fox, spot) + checker floor",
+            "textured_models",
+            Scene::load(&dir.join("textured_models.ron"))?,
+        ),
     ];
     for (name, effect, case, scene) in cases {
         let st = time_frames(gpu, scene, RenderMode::Hybrid, args)?;

@@ -104,7 +104,14 @@ fn twins_match_wgsl_layouts() {
             band_count,
             reflectivity,
             roughness,
-            thresholds
+            thresholds,
+            checker_a,
+            checker_size,
+            checker_b,
+            texture_layer,
+            uv_scale,
+            texture_nearest,
+            _pad
         }
     );
     check_twin!(
@@ -243,6 +250,7 @@ fn constants_and_workgroup_sizes_match() {
         ("RENDER_MODE_RASTER", RENDER_MODE_RASTER),
         ("RENDER_MODE_HYBRID", RENDER_MODE_HYBRID),
         ("RENDER_MODE_RAYTRACE", RENDER_MODE_RAYTRACE),
+        ("NO_TEXTURE", NO_TEXTURE),
     ] {
         assert_eq!(wgsl_u32_constant(&module, name), value, "{name}");
     }

@@ -44,6 +44,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
                 best.material = select(object_material, instances[inst].material, object_material == CSG_NO_MATERIAL);
                 object_normal = h.normal;
                 object_geometric = h.geometric;
+                hit_triangle = mesh_triangle;
                 if any_hit {
                     return best;
                 }

@@ -38,6 +38,9 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     var gen_material = 0u;
     var gen_instance = NO_HIT;
     var gen_t = t_max;
+    // The triangle (index in `triangles`) of a generated hit on a CSG mesh
+    // leaf, for its texture coordinates (hit_triangle, lib/traverse.wgsl).
+    var gen_triangle = 0u;
     var stack: array<u32, TRAVERSAL_STACK>;
     loop {
         if !rayQueryProceed(&rq) {
@@ -64,6 +67,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
             gen_geometric = h.geometric;
             gen_material = select(object_material, instances[inst].material, object_material == CSG_NO_MATERIAL);
             gen_instance = inst;
+            gen_triangle = mesh_triangle;
             // A named value: naga 30 does not emit an expression written
             // inside this call's arguments before the call.
             let t_hit = h.t;
@@ -84,10 +88,12 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     var object_normal = gen_normal;
     var object_geometric = gen_geometric;
     best.material = gen_material;
+    hit_triangle = gen_triangle;
     if triangle {
         inst = c.instance_custom_data;
         best.t = c.t;
-        let tri = triangles[rq_mesh_base[instances[inst].shape] + c.primitive_index];
+        hit_triangle = rq_mesh_base[instances[inst].shape] + c.primitive_index;
+        let tri = triangles[hit_triangle];
         let u = c.barycentrics.x;
         let v = c.barycentrics.y;
         object_normal = tri.n0.xyz * (1.0 - u - v) + tri.n1.xyz * u + tri.n2.xyz * v;

@@ -17,6 +17,10 @@ const TRAVERSAL_STACK: u32 = 64u;
 override MESHES_ENABLED: bool = true;
 
 var<private> steps_left: u32;
+// The triangle (index into `triangles`) of the closest hit `trace` last
+// returned, when that hit is on a triangle mesh (texture coordinates).
+var<private> hit_triangle: u32;
+var<private> mesh_triangle: u32;
 var<private> overflowed: bool;
 
 // A world-space hit: unit outward normals (not yet flipped towards the ray).
@@ -114,6 +118,7 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
             if h.hit {
                 t_best = h.t;
                 best = h;
+                mesh_triangle = k;
             }
         }
         current = NO_HIT;

@@ -64,7 +64,19 @@ struct GpuMaterial {
     // band_count - 1 increasing N.L thresholds, packed four to a vec4;
     // unused slots hold 2.0 (above any N.L).
     thresholds: array<vec4<f32>, 4>,
+    // Procedural checker (shaders/lib/texture.wgsl); size 0: none.
+    checker_a: vec3<f32>,
+    checker_size: f32,
+    checker_b: vec3<f32>,
+    // Layer of the base-colour texture array, or NO_TEXTURE.
+    texture_layer: u32,
+    uv_scale: vec2<f32>,
+    // 1: nearest-texel sampling.
+    texture_nearest: u32,
+    _pad: u32,
 }
+
+const NO_TEXTURE: u32 = 0xffffffffu;
 
 struct GpuInstance {
     world_from_object: mat4x4<f32>,
@@ -100,7 +112,8 @@ struct BvhNode {
     count: u32,
 }
 
-// A mesh triangle in object space with its vertex normals (w unused).
+// A mesh triangle in object space with its vertex normals; (p_k.w, n_k.w)
+// are corner k's texture coordinates.
 struct GpuTriangle {
     p0: vec4<f32>,
     p1: vec4<f32>,

@@ -49,6 +49,9 @@ pub struct SceneAccel {
     /// Postfix programs of the CSG shapes (each ends with CSG_OP_END).
     pub csg_ops: Vec<GpuCsgOp>,
     pub csg_leaves: Vec<GpuCsgLeaf>,
+    /// Per triangle: (shape id, the mesh vertex of its first corner), or
+    /// (u32::MAX, 0) for CSG leaves: where its base-colour map comes from.
+    pub triangle_sources: Vec<(u32, u32)>,
     pub build_ms: f64,
 }
 
@@ -60,6 +63,19 @@ pub(crate) fn append_mesh_blas(
     nodes: &mut Vec<BvhNode>,
     triangles: &mut Vec<GpuTriangle>,
     max_depth: &mut u32,
+) -> Result<u32, AccelError> {
+    append_mesh_blas_with_sources(mesh, name, nodes, triangles, max_depth, &mut Vec::new())
+}
+
+/// [`append_mesh_blas`], also appending each triangle's first corner's
+/// vertex index to `first_corners`.
+fn append_mesh_blas_with_sources(
+    mesh: &Mesh,
+    name: &str,
+    nodes: &mut Vec<BvhNode>,
+    triangles: &mut Vec<GpuTriangle>,
+    max_depth: &mut u32,
+    first_corners: &mut Vec<u32>,
 ) -> Result<u32, AccelError> {
     let tri_bounds: Vec<Aabb> = mesh
         .indices
@@ -83,8 +99,10 @@ pub(crate) fn append_mesh_blas(
     let tri_base = triangles.len() as u32;
     for &item in &blas.items {
         let t = &mesh.indices[item as usize * 3..item as usize * 3 + 3];
-        let p = |k: usize| mesh.positions[t[k] as usize].extend(0.0).to_array();
-        let n = |k: usize| mesh.normals[t[k] as usize].extend(0.0).to_array();
+        first_corners.push(t[0]);
+        let uv = |k: usize| mesh.uvs.get(t[k] as usize).copied().unwrap_or_default();
+        let p = |k: usize| mesh.positions[t[k] as usize].extend(uv(k).x).to_array();
+        let n = |k: usize| mesh.normals[t[k] as usize].extend(uv(k).y).to_array();
         triangles.push(GpuTriangle {
             p0: p(0),
             p1: p(1),
@@ -129,6 +147,7 @@ impl SceneAccel {
         let mut csg_ops = Vec::new();
         let mut csg_leaves = Vec::new();
         let mut max_blas_depth = 0;
+        let mut triangle_sources = Vec::new();
         for (id, shape) in scene.shapes.iter().enumerate() {
             let (kind, params) = shape_params(shape);
             let mut gpu_shape = GpuShape {
@@ -147,8 +166,16 @@ impl SceneAccel {
             });
             let name = scene.shape_names.get(id).cloned().unwrap_or_default();
             if let Shape::Mesh(mesh) = shape {
-                gpu_shape.blas_root =
-                    append_mesh_blas(mesh, &name, &mut nodes, &mut triangles, &mut max_blas_depth)?;
+                let mut corners = Vec::new();
+                gpu_shape.blas_root = append_mesh_blas_with_sources(
+                    mesh,
+                    &name,
+                    &mut nodes,
+                    &mut triangles,
+                    &mut max_blas_depth,
+                    &mut corners,
+                )?;
+                triangle_sources.extend(corners.into_iter().map(|v| (id as u32, v)));
             }
             if let Shape::Csg(tree) = shape {
                 gpu_shape.blas_root =
@@ -157,6 +184,7 @@ impl SceneAccel {
                     })?;
             }
             shapes.push(gpu_shape);
+            triangle_sources.resize(triangles.len(), (u32::MAX, 0));
         }
 
         let instances: Vec<(Mat4, Mat4, u32)> = instance_order
@@ -237,6 +265,7 @@ impl SceneAccel {
             tlas_items: tlas.items,
             instances,
             csg_ops,
+            triangle_sources,
             csg_leaves,
             build_ms,
         })

@@ -505,6 +505,18 @@ pub fn fix_thresholds(t: &mut [f32], edited: usize) {
 }
 
 fn material_ui(ui: &mut Ui, m: &mut Material) {
+    if let Some(t) = &m.base_color_texture {
+        ui.label(format!(
+            "texture: {} ({}x{}; replaces the base colour)",
+            t.texture.name(),
+            t.texture.width,
+            t.texture.height
+        ))
+        .on_hover_text(&t.texture.source);
+    }
+    if let Some(crate::scene::Pattern::Checker { size, .. }) = m.base_color_pattern {
+        ui.label(format!("pattern: checker, {size} units"));
+    }
     color_ui(ui, "base colour", &mut m.base_color);
     color_ui(ui, "specular colour", &mut m.specular_color);
     ui.add(

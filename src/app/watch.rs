@@ -40,6 +40,25 @@ pub fn watch(
     shaders: Option<&Path>,
     on_change: impl Fn(Changed) + Send + 'static,
 ) -> notify::Result<Watcher> {
+    watch_with_images(scene, shaders, &[], on_change)
+}
+
+/// [`watch`], and also the scene's image files: a changed image reports
+/// [`Changed::Scene`] (reloading the scene reads it again).
+pub fn watch_with_images(
+    scene: Option<&Path>,
+    shaders: Option<&Path>,
+    images: &[PathBuf],
+    on_change: impl Fn(Changed) + Send + 'static,
+) -> notify::Result<Watcher> {
+    let images: Vec<PathBuf> = images
+        .iter()
+        .map(|p| p.canonicalize().unwrap_or_else(|_| p.to_path_buf()))
+        .collect();
+    let image_dirs: Vec<PathBuf> = images
+        .iter()
+        .filter_map(|p| p.parent().map(Path::to_path_buf))
+        .collect();
     let scene = scene.map(|p| p.canonicalize().unwrap_or_else(|_| p.to_path_buf()));
     let scene_name = scene
         .as_ref()
@@ -54,6 +73,9 @@ pub fn watch(
         let mut shader_hit = false;
         for path in &event.paths {
             if scene_name.is_some() && path.file_name() == scene_name.as_deref() {
+                scene_hit = true;
+            }
+            if images.iter().any(|i| i == path) {
                 scene_hit = true;
             }
             if let Some(root) = &shader_root {
@@ -74,6 +96,14 @@ pub fn watch(
     }
     if let Some(dir) = shaders {
         inner.watch(dir, notify::RecursiveMode::Recursive)?;
+    }
+    let scene_dir = scene.as_ref().and_then(|p| p.parent());
+    let mut watched: Vec<&Path> = Vec::new();
+    for dir in &image_dirs {
+        if Some(dir.as_path()) != scene_dir && !watched.contains(&dir.as_path()) {
+            inner.watch(dir, notify::RecursiveMode::NonRecursive)?;
+            watched.push(dir);
+        }
     }
     Ok(Watcher { _inner: inner })
 }

@@ -536,9 +536,14 @@ impl Running {
 
     fn rewatch(&mut self, proxy: &EventLoopProxy<AppEvent>) {
         let proxy = proxy.clone();
-        let result = watch::watch(
+        let images: Vec<PathBuf> = crate::render::textures::scene_images(&self.model.scene)
+            .iter()
+            .map(|t| t.path.clone())
+            .collect();
+        let result = watch::watch_with_images(
             self.model.scene_path.as_deref(),
             self.shader_dir.as_deref(),
+            &images,
             move |c| {
                 let _ = proxy.send_event(AppEvent::FilesChanged(c));
             },
@@ -584,7 +589,8 @@ impl Running {
                 self.model.status = Some(format!("loaded {}", path.display()));
                 self.window
                     .set_title(&window_title(self.model.scene_path.as_deref()));
-                if dropped && self.watcher.is_some() {
+                // A new file, or new images to watch.
+                if self.watcher.is_some() {
                     self.rewatch(proxy);
                 }
             }

@@ -39,6 +39,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         "lib/random.wgsl",
         include_str!("../../shaders/lib/random.wgsl"),
     ),
+    (
+        "lib/texture.wgsl",
+        include_str!("../../shaders/lib/texture.wgsl"),
+    ),
     ("raster.wgsl", include_str!("../../shaders/raster.wgsl")),
     (
         "accumulate.wgsl",

@@ -60,7 +60,17 @@ pub struct GpuMaterial {
     pub reflectivity: f32,
     pub roughness: f32,
     pub thresholds: [[f32; 4]; 4],
+    pub checker_a: [f32; 3],
+    pub checker_size: f32,
+    pub checker_b: [f32; 3],
+    pub texture_layer: u32,
+    pub uv_scale: [f32; 2],
+    pub texture_nearest: u32,
+    pub _pad: u32,
 }
+
+/// [`GpuMaterial::texture_layer`] of a material without an image.
+pub const NO_TEXTURE: u32 = u32::MAX;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -89,13 +99,19 @@ pub struct ResolveUniforms {
 pub struct Vertex {
     pub position: [f32; 3],
     pub normal: [f32; 3],
+    /// Texture coordinates (meshes from files; analytic shapes compute
+    /// theirs from the object-space position).
+    pub uv: [f32; 2],
+    /// The mesh's own base-colour map: a texture array layer, or
+    /// [`NO_TEXTURE`].
+    pub map: u32,
 }
 
 impl Vertex {
     pub const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Uint32],
     };
 }
 
@@ -130,7 +146,9 @@ pub struct BvhNode {
     pub count: u32,
 }
 
-/// A triangle of a mesh in object space, with its vertex normals.
+/// A triangle of a mesh in object space, with its vertex normals; the w
+/// components carry the texture coordinates: `(p_k.w, n_k.w)` is corner
+/// k's (u, v).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuTriangle {

@@ -17,6 +17,7 @@ pub mod resolve;
 pub mod scene_buffers;
 pub mod settings;
 pub mod targets;
+pub mod textures;
 pub mod trace;
 
 use wgpu::util::DeviceExt;
@@ -298,7 +299,9 @@ impl Renderer {
         let same_geometry = scene.shapes == self.scene.shapes
             && scene.instances == self.scene.instances
             && scene.materials.len() == self.scene.materials.len()
-            && scene.lights.len() == self.scene.lights.len();
+            && scene.lights.len() == self.scene.lights.len()
+            && textures::scene_uses_textures(&scene) == self.buffers.uses_textures
+            && textures::scene_images(&scene) == self.buffers.textures.layers;
         if !same_geometry {
             return self.set_scene(gpu, scene);
         }
@@ -306,7 +309,7 @@ impl Renderer {
             let materials: Vec<_> = scene
                 .materials
                 .iter()
-                .map(scene_buffers::material_to_gpu)
+                .map(|m| scene_buffers::material_to_gpu(m, &self.buffers.textures))
                 .collect();
             gpu.queue
                 .write_buffer(&self.buffers.materials, 0, bytemuck::cast_slice(&materials));

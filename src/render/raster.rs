@@ -5,17 +5,25 @@ use crate::gpu::twins::Vertex;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::scene_buffers::{Cull, SceneBuffers};
 use crate::render::settings::RenderMode;
-use crate::render::targets::{Targets, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
+use crate::render::targets::{
+    Targets, ALBEDO_FORMAT, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT,
+};
 
 pub struct RasterPass {
-    /// One pipeline per [`Cull`] mode: back, front, none.
-    pipelines: [wgpu::RenderPipeline; 3],
+    /// One pipeline per [`Cull`] mode (back, front, none), without and with
+    /// the texture code (entry points `vs_main`/`fs_main` or
+    /// `vs_textured`/`fs_textured`), each built the first time a scene
+    /// needs it.
+    pipelines: [Option<[wgpu::RenderPipeline; 3]>; 2],
+    textures: bool,
+    module: wgpu::ShaderModule,
+    pipeline_layout: wgpu::PipelineLayout,
     layout: wgpu::BindGroupLayout,
     bind_group: Option<wgpu::BindGroup>,
 }
 
 use crate::gpu::layout::buffer_entries;
-use crate::gpu::layout::{read_only_storage_entry, uniform_entry};
+use crate::gpu::layout::{map_array_entry, read_only_storage_entry, sampler_entry, uniform_entry};
 
 impl RasterPass {
     pub fn new(gpu: &Gpu) -> Result<RasterPass, GpuError> {
@@ -29,8 +37,12 @@ impl RasterPass {
                     entries: &[
                         uniform_entry(0, vf),
                         read_only_storage_entry(1, vf),
-                        read_only_storage_entry(2, wgpu::ShaderStages::VERTEX),
+                        read_only_storage_entry(2, wgpu::ShaderStages::FRAGMENT),
                         read_only_storage_entry(3, wgpu::ShaderStages::FRAGMENT),
+                        read_only_storage_entry(4, wgpu::ShaderStages::FRAGMENT),
+                        map_array_entry(5, wgpu::ShaderStages::FRAGMENT),
+                        sampler_entry(6, wgpu::ShaderStages::FRAGMENT),
+                        sampler_entry(7, wgpu::ShaderStages::FRAGMENT),
                     ],
                 });
             let pipeline_layout =
@@ -40,71 +52,53 @@ impl RasterPass {
                         bind_group_layouts: &[Some(&layout)],
                         immediate_size: 0,
                     });
-            let target = |format| {
-                Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })
-            };
-            let pipeline = |cull_mode| {
-                gpu.device
-                    .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                        label: Some("raster pipeline"),
-                        layout: Some(&pipeline_layout),
-                        vertex: wgpu::VertexState {
-                            module: &module,
-                            entry_point: Some("vs_main"),
-                            compilation_options: Default::default(),
-                            buffers: &[Some(Vertex::LAYOUT)],
-                        },
-                        primitive: wgpu::PrimitiveState {
-                            topology: wgpu::PrimitiveTopology::TriangleList,
-                            front_face: wgpu::FrontFace::Ccw,
-                            cull_mode,
-                            ..Default::default()
-                        },
-                        depth_stencil: Some(wgpu::DepthStencilState {
-                            format: DEPTH_FORMAT,
-                            depth_write_enabled: Some(true),
-                            depth_compare: Some(wgpu::CompareFunction::Less),
-                            stencil: Default::default(),
-                            bias: Default::default(),
-                        }),
-                        multisample: Default::default(),
-                        fragment: Some(wgpu::FragmentState {
-                            module: &module,
-                            entry_point: Some("fs_main"),
-                            compilation_options: Default::default(),
-                            targets: &[
-                                target(COLOR_FORMAT),
-                                target(NORMAL_DEPTH_FORMAT),
-                                target(ID_FORMAT),
-                            ],
-                        }),
-                        multiview_mask: None,
-                        cache: None,
-                    })
-            };
-            let pipelines = [
-                pipeline(Some(wgpu::Face::Back)),
-                pipeline(Some(wgpu::Face::Front)),
-                pipeline(None),
-            ];
             RasterPass {
-                pipelines,
+                pipelines: [None, None],
+                textures: false,
+                module,
+                pipeline_layout,
                 layout,
                 bind_group: None,
             }
         })
     }
 
-    /// Binds the frame uniforms and the scene's buffers.
+    /// Builds the pipelines the scene needs (once) and binds the frame
+    /// uniforms and the scene's buffers and textures.
     pub fn prepare(&mut self, gpu: &Gpu, frame: &wgpu::Buffer, scene: &SceneBuffers) {
+        self.textures = scene.uses_textures;
+        let slot = usize::from(self.textures);
+        if self.pipelines[slot].is_none() {
+            self.pipelines[slot] = Some(raster_pipelines(
+                gpu,
+                &self.pipeline_layout,
+                &self.module,
+                self.textures,
+            ));
+        }
+        let mut entries = buffer_entries(&[
+            frame,
+            &scene.instances,
+            &scene.materials,
+            &scene.lights,
+            &scene.shapes,
+        ]);
+        entries.push(wgpu::BindGroupEntry {
+            binding: 5,
+            resource: wgpu::BindingResource::TextureView(&scene.textures.view),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 6,
+            resource: wgpu::BindingResource::Sampler(&scene.textures.linear),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 7,
+            resource: wgpu::BindingResource::Sampler(&scene.textures.nearest),
+        });
         self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raster bind group"),
             layout: &self.layout,
-            entries: &buffer_entries(&[frame, &scene.instances, &scene.materials, &scene.lights]),
+            entries: &entries,
         }));
     }
 
@@ -118,10 +112,11 @@ impl RasterPass {
         timer: Option<&PassTimer>,
     ) {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let (color, normal_depth, id, depth) = (
+        let (color, normal_depth, id, albedo, depth) = (
             view(&targets.raster.color),
             view(&targets.raster.normal_depth),
             view(&targets.raster.id),
+            view(&targets.raster_albedo),
             view(&targets.depth),
         );
         let clear = |c: wgpu::Color| wgpu::Operations {
@@ -156,6 +151,11 @@ impl RasterPass {
                     },
                 ),
                 attachment(&id, wgpu::Color::TRANSPARENT),
+                if self.textures {
+                    attachment(&albedo, wgpu::Color::TRANSPARENT)
+                } else {
+                    None
+                },
             ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &depth,
@@ -179,9 +179,12 @@ impl RasterPass {
             RenderMode::Hybrid => d.is_mesh,
             RenderMode::Raytrace => false,
         };
+        let Some(pipelines) = &self.pipelines[usize::from(self.textures)] else {
+            return;
+        };
         for d in scene.draws.iter().filter(drawn) {
             pass.set_pipeline(
-                &self.pipelines[match d.cull {
+                &pipelines[match d.cull {
                     Cull::Back => 0,
                     Cull::Front => 1,
                     Cull::None => 2,
@@ -194,4 +197,76 @@ impl RasterPass {
             );
         }
     }
+}
+
+/// The three cull-mode pipelines of one variant (with or without textures).
+fn raster_pipelines(
+    gpu: &Gpu,
+    pipeline_layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    textures: bool,
+) -> [wgpu::RenderPipeline; 3] {
+    // Untextured scenes run the entry points without texture varyings.
+    let (vs, fs) = if textures {
+        ("vs_textured", "fs_textured")
+    } else {
+        ("vs_main", "fs_main")
+    };
+    let target = |format| {
+        Some(wgpu::ColorTargetState {
+            format,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        })
+    };
+    let pipeline = |cull_mode| {
+        gpu.device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("raster pipeline"),
+                layout: Some(pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module,
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(Vertex::LAYOUT)],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module,
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
+                    targets: &[
+                        target(COLOR_FORMAT),
+                        target(NORMAL_DEPTH_FORMAT),
+                        target(ID_FORMAT),
+                        // Only textured scenes' trace pass reads the albedo.
+                        if textures {
+                            target(ALBEDO_FORMAT)
+                        } else {
+                            None
+                        },
+                    ],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+    };
+    [
+        pipeline(Some(wgpu::Face::Back)),
+        pipeline(Some(wgpu::Face::Front)),
+        pipeline(None),
+    ]
 }

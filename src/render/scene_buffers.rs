@@ -7,10 +7,14 @@ use wgpu::util::DeviceExt;
 
 use crate::accel::SceneAccel;
 use crate::gpu::twins::{
-    GpuInstance, GpuLight, GpuMaterial, Vertex, MAX_TOON_BANDS, SHADING_BLINN_PHONG, SHADING_TOON,
+    GpuInstance, GpuLight, GpuMaterial, Vertex, MAX_TOON_BANDS, NO_TEXTURE, SHADING_BLINN_PHONG,
+    SHADING_TOON,
 };
 use crate::gpu::{Gpu, GpuError};
-use crate::scene::{tessellate, Light, Material, Scene, ShadingModel, Shape};
+use crate::render::textures::{scene_uses_textures, SceneTextures};
+use crate::scene::{
+    tessellate, Light, Material, Pattern, Scene, ShadingModel, Shape, TextureFilter,
+};
 
 /// Which triangles a draw may skip. Closed analytic shapes are drawn with
 /// back faces culled (front faces when the instance mirrors, which flips the
@@ -60,10 +64,17 @@ pub struct SceneBuffers {
     /// CSG programs and leaves (one dummy element when there are none).
     pub csg_ops: wgpu::Buffer,
     pub csg_leaves: wgpu::Buffer,
+    /// Per trace triangle: its mesh's own map layer, or NO_TEXTURE.
+    pub triangle_maps: wgpu::Buffer,
+    /// Base-colour images (a 1x1 white layer when there are none).
+    pub textures: SceneTextures,
+    /// Whether any material has an image or a pattern: passes compile
+    /// their texture code in only then (override `TEXTURES_ENABLED`).
+    pub uses_textures: bool,
 }
 
-/// The GPU form of a material.
-pub fn material_to_gpu(m: &Material) -> GpuMaterial {
+/// The GPU form of a material; `textures` gives its image's array layer.
+pub fn material_to_gpu(m: &Material, textures: &SceneTextures) -> GpuMaterial {
     let mut g = GpuMaterial {
         base_color: m.base_color.to_array(),
         shininess: m.shininess,
@@ -79,7 +90,26 @@ pub fn material_to_gpu(m: &Material) -> GpuMaterial {
         roughness: m.roughness,
         // Unused slots above any N.L (see toon_band in shaders/lib/shading.wgsl).
         thresholds: [[2.0; 4]; 4],
+        checker_a: [0.0; 3],
+        checker_size: 0.0,
+        checker_b: [0.0; 3],
+        texture_layer: m
+            .base_color_texture
+            .as_ref()
+            .and_then(|t| textures.layer_of(&t.texture))
+            .unwrap_or(NO_TEXTURE),
+        uv_scale: m.uv_scale.to_array(),
+        texture_nearest: u32::from(matches!(
+            m.base_color_texture.as_ref().map(|t| t.filter),
+            Some(TextureFilter::Nearest)
+        )),
+        _pad: 0,
     };
+    if let Some(Pattern::Checker { a, b, size }) = m.base_color_pattern {
+        g.checker_a = a.to_array();
+        g.checker_b = b.to_array();
+        g.checker_size = size;
+    }
     if let ShadingModel::Toon(toon) = &m.model {
         g.model = SHADING_TOON;
         g.band_count = toon.bands().min(MAX_TOON_BANDS);
@@ -218,6 +248,7 @@ impl SceneBuffers {
             binding_limit,
         )?;
 
+        let textures = SceneTextures::upload(gpu, scene)?;
         let mut vertices: Vec<Vertex> = Vec::new();
         let mut indices: Vec<u32> = Vec::new();
         let mut draws = Vec::new();
@@ -259,15 +290,15 @@ impl SceneBuffers {
                 group_start = group_end;
             }
             triangle_count += (mesh.indices.len() / 3) as u64 * u64::from(end - first);
-            vertices.extend(
-                mesh.positions
-                    .iter()
-                    .zip(&mesh.normals)
-                    .map(|(p, n)| Vertex {
-                        position: p.to_array(),
-                        normal: n.to_array(),
-                    }),
-            );
+            let layers = textures.mesh_layers(mesh);
+            vertices.extend(mesh.positions.iter().zip(&mesh.normals).enumerate().map(
+                |(i, (p, n))| Vertex {
+                    position: p.to_array(),
+                    normal: n.to_array(),
+                    uv: mesh.uvs.get(i).copied().unwrap_or_default().to_array(),
+                    map: SceneTextures::vertex_layer(&layers, mesh, i),
+                },
+            ));
             indices.extend_from_slice(&mesh.indices);
         }
         check_limit(
@@ -285,6 +316,8 @@ impl SceneBuffers {
             vertices.push(Vertex {
                 position: [0.0; 3],
                 normal: [0.0, 1.0, 0.0],
+                uv: [0.0; 2],
+                map: NO_TEXTURE,
             });
             indices.extend([0, 0, 0]);
         }
@@ -292,7 +325,11 @@ impl SceneBuffers {
         if gpu_instances.is_empty() {
             gpu_instances.push(instance_to_gpu(Mat4::IDENTITY, 0, 0));
         }
-        let mut materials: Vec<GpuMaterial> = scene.materials.iter().map(material_to_gpu).collect();
+        let mut materials: Vec<GpuMaterial> = scene
+            .materials
+            .iter()
+            .map(|m| material_to_gpu(m, &textures))
+            .collect();
         if materials.is_empty() {
             materials.push(bytemuck::Zeroable::zeroed());
         }
@@ -324,6 +361,23 @@ impl SceneBuffers {
         let mut csg_leaves = accel.csg_leaves.clone();
         if csg_leaves.is_empty() {
             csg_leaves.push(bytemuck::Zeroable::zeroed());
+        }
+        // Per triangle of the trace pass: its mesh's own map layer.
+        let mut shape_layers: Vec<Option<Vec<u32>>> = vec![None; scene.shapes.len()];
+        let mut triangle_maps: Vec<u32> = accel
+            .triangle_sources
+            .iter()
+            .map(|&(shape, vertex)| match scene.shapes.get(shape as usize) {
+                Some(Shape::Mesh(mesh)) if !mesh.textures.is_empty() => {
+                    let layers = shape_layers[shape as usize]
+                        .get_or_insert_with(|| textures.mesh_layers(mesh));
+                    SceneTextures::vertex_layer(layers, mesh, vertex as usize)
+                }
+                _ => NO_TEXTURE,
+            })
+            .collect();
+        if triangle_maps.is_empty() {
+            triangle_maps.push(NO_TEXTURE);
         }
         let mut tlas_items = accel.tlas_items.clone();
         if tlas_items.is_empty() {
@@ -358,6 +412,7 @@ impl SceneBuffers {
                 .any(|i| i.world_from_object_end.is_some()),
             csg_ops: storage_buffer(gpu, "scene CSG programs", &csg_ops),
             csg_leaves: storage_buffer(gpu, "scene CSG leaves", &csg_leaves),
+            triangle_maps: storage_buffer(gpu, "scene triangle maps", &triangle_maps),
             accel,
             vertices: gpu
                 .device
@@ -377,6 +432,8 @@ impl SceneBuffers {
             materials: storage_buffer(gpu, "scene materials", &materials),
             lights: storage_buffer(gpu, "scene lights", &lights),
             light_count,
+            textures,
+            uses_textures: scene_uses_textures(scene),
             draws,
             instance_order: order,
             triangle_count,

@@ -6,6 +6,9 @@ use crate::gpu::{Gpu, GpuError};
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 pub const NORMAL_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+/// The raster pass's base colour after images and patterns, read by the
+/// trace pass for rasterized hits in hybrid mode.
+pub const ALBEDO_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
@@ -23,6 +26,8 @@ pub struct Targets {
     pub raster: GBuffer,
     /// Written by the trace pass (hybrid and raytrace modes).
     pub traced: GBuffer,
+    /// See [`ALBEDO_FORMAT`].
+    pub raster_albedo: wgpu::Texture,
     pub depth: wgpu::Texture,
     /// One vec4<f32> per pixel: summed colour in rgb, sample count in w.
     pub accum: wgpu::Buffer,
@@ -108,6 +113,7 @@ impl Targets {
                     attach | wgpu::TextureUsages::COPY_SRC,
                 ),
             },
+            raster_albedo: texture(gpu, "raster albedo", width, height, ALBEDO_FORMAT, attach),
             traced: GBuffer {
                 color: texture(gpu, "traced colour", width, height, COLOR_FORMAT, storage),
                 normal_depth: texture(

@@ -8,8 +8,8 @@ use std::collections::HashMap;
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{
-    buffer_entries, read_only_storage_entry, read_write_storage_entry, storage_texture_entry,
-    texture_entry, uniform_entry,
+    buffer_entries, map_array_entry, read_only_storage_entry, read_write_storage_entry,
+    sampler_entry, storage_texture_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::shader::Traversal;
 use crate::gpu::timer::PassTimer;
@@ -59,6 +59,7 @@ pub struct Variant {
     shadows: bool,
     reflections: bool,
     glossy: bool,
+    textures: bool,
 }
 
 impl Variant {
@@ -79,11 +80,12 @@ impl Variant {
             }),
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
+            textures: buffers.uses_textures,
         }
     }
 
     /// The override constants that select this variant in trace.wgsl.
-    fn constants(self) -> [(&'static str, f64); 5] {
+    fn constants(self) -> [(&'static str, f64); 6] {
         let flag = |b: bool| f64::from(u8::from(b));
         [
             ("CSG_ENABLED", flag(self.csg)),
@@ -91,6 +93,7 @@ impl Variant {
             ("SHADOWS_ENABLED", flag(self.shadows)),
             ("REFLECTIONS_ENABLED", flag(self.reflections)),
             ("GLOSSY_ENABLED", flag(self.glossy)),
+            ("TEXTURES_ENABLED", flag(self.textures)),
         ]
     }
 }
@@ -138,6 +141,11 @@ impl TracePass {
                             // CSG programs and leaves (shaders/lib/csg.wgsl).
                             read_only_storage_entry(9, c),
                             read_only_storage_entry(10, c),
+                            // Base-colour maps (shaders/lib/texture.wgsl).
+                            map_array_entry(11, c),
+                            sampler_entry(12, c),
+                            sampler_entry(13, c),
+                            read_only_storage_entry(14, c),
                         ],
                     });
             let float = wgpu::TextureSampleType::Float { filterable: false };
@@ -151,6 +159,7 @@ impl TracePass {
                             storage_texture_entry(2, COLOR_FORMAT),
                             storage_texture_entry(3, NORMAL_DEPTH_FORMAT),
                             storage_texture_entry(4, ID_FORMAT),
+                            texture_entry(5, float),
                         ],
                     });
             let layout = gpu
@@ -255,7 +264,23 @@ impl TracePass {
             &scene.csg_ops,
             &scene.csg_leaves,
         ];
-        let entries = buffer_entries(&buffers);
+        let mut entries = buffer_entries(&buffers);
+        entries.push(wgpu::BindGroupEntry {
+            binding: 11,
+            resource: wgpu::BindingResource::TextureView(&scene.textures.view),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 12,
+            resource: wgpu::BindingResource::Sampler(&scene.textures.linear),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 13,
+            resource: wgpu::BindingResource::Sampler(&scene.textures.nearest),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 14,
+            resource: scene.triangle_maps.as_entire_binding(),
+        });
         let scene_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace scene bind group"),
             layout: &self.scene_layout,
@@ -267,6 +292,7 @@ impl TracePass {
             &targets.traced.color,
             &targets.traced.normal_depth,
             &targets.traced.id,
+            &targets.raster_albedo,
         ]
         .map(|t| t.create_view(&Default::default()));
         let entries: Vec<wgpu::BindGroupEntry> = views

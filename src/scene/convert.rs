@@ -3,16 +3,19 @@
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::Mat4;
 
 use super::file::{
-    ron_options, ApertureFile, CameraFile, CsgFile, LightFile, MaterialFile, ModelFile, PlaneFile,
-    SceneFile, ShapeFile, TransformFile, VersionProbe, MAX_NESTING, SCENE_FORMAT_VERSION,
+    ron_options, ApertureFile, CameraFile, CsgFile, LightFile, MaterialFile, ModelFile,
+    PatternFile, PlaneFile, SceneFile, ShapeFile, TextureFilterFile, TransformFile, VersionProbe,
+    MAX_NESTING, SCENE_FORMAT_VERSION,
 };
 use super::{
-    ApertureShape, Camera, Csg, CsgLeaf, CsgNode, Instance, Light, Material, Mesh, PlaneKind, Rim,
-    Scene, SceneError, ShadingModel, Shape, Toon, MAX_TOON_BANDS,
+    ApertureShape, BaseColorTexture, Camera, Csg, CsgLeaf, CsgNode, Instance, Light, Material,
+    Mesh, Pattern, PlaneKind, Rim, Scene, SceneError, ShadingModel, Shape, Texture, TextureFilter,
+    Toon, MAX_TEXTURES, MAX_TOON_BANDS,
 };
 
 /// Outline width of toon materials that do not give one.
@@ -74,6 +77,7 @@ pub(crate) fn scene_from_str(
         scene_file: file_name,
         embedded,
         cache: HashMap::new(),
+        textures: Vec::new(),
     };
     let scene = convert(file, file_name, &mut meshes).map_err(|e| e.in_file(file_name))?;
     scene.validate().map_err(|e| e.in_file(file_name))?;
@@ -123,9 +127,21 @@ fn convert(file: SceneFile, file_name: &str, meshes: &mut MeshLoader) -> Result<
 
     let mut materials = Vec::new();
     let mut material_names = Vec::new();
-    for (name, material) in file.materials.0 {
-        let material = convert_material(material)
+    for (name, mut material) in file.materials.0 {
+        let filter = match material.texture_filter {
+            TextureFilterFile::Linear => TextureFilter::Linear,
+            TextureFilterFile::Nearest => TextureFilter::Nearest,
+        };
+        let texture = match material.base_color_texture.take() {
+            Some(relative) => Some(BaseColorTexture {
+                texture: meshes.texture(&relative, &name)?,
+                filter,
+            }),
+            None => None,
+        };
+        let mut material = convert_material(material)
             .map_err(|m| SceneError::invalid(format!("material \"{name}\""), m))?;
+        material.base_color_texture = texture;
         materials.push(material);
         material_names.push(name);
     }
@@ -135,6 +151,26 @@ fn convert(file: SceneFile, file_name: &str, meshes: &mut MeshLoader) -> Result<
     for (name, shape) in file.shapes.0 {
         shapes.push(convert_shape(shape, &name, meshes, &material_names)?);
         shape_names.push(name);
+    }
+    // Meshes' own maps share the texture array with the materials' images.
+    let mut images: Vec<Arc<Texture>> = meshes.textures.clone();
+    for (shape, name) in shapes.iter().zip(&shape_names) {
+        let Shape::Mesh(mesh) = shape else { continue };
+        for t in &mesh.textures {
+            if images.iter().any(|i| Arc::ptr_eq(i, t)) {
+                continue;
+            }
+            if images.len() >= MAX_TEXTURES {
+                return Err(SceneError::Texture {
+                    path: t.path.clone(),
+                    material: format!("{} (mesh of shape \"{name}\")", t.source),
+                    reason: format!(
+                        "too many textures: a scene may use at most {MAX_TEXTURES} images"
+                    ),
+                });
+            }
+            images.push(t.clone());
+        }
     }
 
     let mut instances = Vec::new();
@@ -305,6 +341,11 @@ fn convert_material(m: MaterialFile) -> Result<Material, String> {
         outline_width_px: m.outline_width_px.unwrap_or(default_outline),
         reflectivity: m.reflectivity,
         roughness: m.roughness,
+        base_color_texture: None,
+        uv_scale: m.uv_scale,
+        base_color_pattern: m.base_color_pattern.map(|p| match p {
+            PatternFile::Checker { a, b, size } => Pattern::Checker { a, b, size },
+        }),
     })
 }
 
@@ -436,9 +477,33 @@ struct MeshLoader<'a> {
     scene_file: &'a str,
     embedded: &'a [(&'a str, &'a [u8])],
     cache: HashMap<PathBuf, Mesh>,
+    /// Images loaded so far (one per path), counted against MAX_TEXTURES.
+    textures: Vec<Arc<Texture>>,
 }
 
 impl MeshLoader<'_> {
+    /// Loads an image once per path; refuses more than MAX_TEXTURES.
+    fn texture(&mut self, relative: &str, material: &str) -> Result<Arc<Texture>, SceneError> {
+        let path = self.base_dir.join(relative);
+        let texture = if let Some(t) = self.textures.iter().find(|t| t.path == path) {
+            t.clone()
+        } else {
+            if self.textures.len() >= MAX_TEXTURES {
+                return Err(SceneError::Texture {
+                    path,
+                    material: material.to_string(),
+                    reason: format!(
+                        "too many textures: a scene may use at most {MAX_TEXTURES} images"
+                    ),
+                });
+            }
+            let t = Arc::new(Texture::load(&path, material)?);
+            self.textures.push(t.clone());
+            t
+        };
+        Ok(texture)
+    }
+
     fn load(&mut self, relative: &str, shape: &str) -> Result<Mesh, SceneError> {
         let path = self.base_dir.join(relative);
         if let Some(mesh) = self.cache.get(&path) {

@@ -41,6 +41,9 @@ pub struct Csg {
 }
 
 /// A node of a CSG tree.
+// A leaf holds its shape inline (a mesh's vectors and maps make it the
+// large variant); trees are small, so boxing would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum CsgNode {
     /// Points in any child (at least one child).

@@ -59,6 +59,14 @@ pub enum SceneError {
     #[error("cannot load mesh {}: {reason}", path.display())]
     MeshParse { path: PathBuf, reason: String },
 
+    /// A base-colour image is missing, cannot be decoded, or is over a limit.
+    #[error("texture {} of material \"{material}\": {reason}", path.display())]
+    Texture {
+        path: PathBuf,
+        material: String,
+        reason: String,
+    },
+
     /// A value is out of range or inconsistent; `context` says where
     /// (for example `scene.ron: material "red"` or `instance 3`).
     #[error("{context}: {message}")]

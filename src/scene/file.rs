@@ -167,6 +167,33 @@ pub(crate) struct MaterialFile {
     pub reflectivity: f32,
     #[serde(default)]
     pub roughness: f32,
+    /// An image file (PNG), relative to the scene file's directory.
+    #[serde(default)]
+    pub base_color_texture: Option<String>,
+    #[serde(default)]
+    pub texture_filter: TextureFilterFile,
+    #[serde(default = "unit_scale")]
+    pub uv_scale: Vec2,
+    #[serde(default)]
+    pub base_color_pattern: Option<PatternFile>,
+}
+
+fn unit_scale() -> Vec2 {
+    Vec2::ONE
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+#[serde(deny_unknown_fields, rename = "texture_filter")]
+pub(crate) enum TextureFilterFile {
+    #[default]
+    Linear,
+    Nearest,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, rename = "pattern")]
+pub(crate) enum PatternFile {
+    Checker { a: Vec3, b: Vec3, size: f32 },
 }
 
 #[derive(Deserialize)]

@@ -1,7 +1,8 @@
 //! Materials and shading models.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
+use super::texture::{BaseColorTexture, Pattern};
 use super::SceneError;
 
 /// The largest number of toon bands a material may have.
@@ -29,6 +30,14 @@ pub struct Material {
     pub reflectivity: f32,
     /// Blur of the reflection in [0, 1]; 0 is a perfect mirror.
     pub roughness: f32,
+    /// An image that replaces `base_color` (sampled at the surface's UV
+    /// times `uv_scale`); `None`: the mesh's own map if it has one, else
+    /// `base_color`.
+    pub base_color_texture: Option<BaseColorTexture>,
+    /// Repeats of the texture across the UV square.
+    pub uv_scale: Vec2,
+    /// A procedural base colour; takes precedence over the texture.
+    pub base_color_pattern: Option<Pattern>,
 }
 
 /// Lighting model of a material.
@@ -176,6 +185,19 @@ impl Material {
         }
         if let ShadingModel::Toon(toon) = &self.model {
             toon.validate()?;
+        }
+        if !(self.uv_scale.is_finite() && self.uv_scale.min_element() > 0.0) {
+            return Err(format!(
+                "uv_scale must be positive, got ({}, {})",
+                self.uv_scale.x, self.uv_scale.y
+            ));
+        }
+        if let Some(Pattern::Checker { a, b, size }) = self.base_color_pattern {
+            check_color("checker colour a", a)?;
+            check_color("checker colour b", b)?;
+            if !(size.is_finite() && size > 0.0) {
+                return Err(format!("checker size must be positive, got {size}"));
+            }
         }
         Ok(())
     }

@@ -2,11 +2,16 @@
 
 use std::collections::HashMap;
 use std::io::Cursor;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use glam::{Mat3, Mat4, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3};
 
-use super::SceneError;
+use super::texture::srgb_to_linear;
+use super::{SceneError, Texture};
+
+/// [`Mesh::vertex_textures`] of a vertex without a map.
+pub const NO_MESH_TEXTURE: u32 = u32::MAX;
 
 /// An indexed triangle mesh in object space.
 ///
@@ -20,6 +25,17 @@ pub struct Mesh {
     pub normals: Vec<Vec3>,
     /// Three indices into `positions` per triangle.
     pub indices: Vec<u32>,
+    /// Texture coordinates, one per position, or empty when the file has
+    /// none. (0, 0) is the image's top-left corner, v grows downwards (glTF's
+    /// convention; OBJ's v is flipped at load).
+    pub uvs: Vec<Vec2>,
+    /// Base-colour images of the file's own materials (glTF
+    /// `baseColorTexture` with `baseColorFactor` multiplied in, OBJ `map_Kd`),
+    /// shown where the instance's material has no image or pattern.
+    pub textures: Vec<Arc<Texture>>,
+    /// Per vertex: an index into `textures`, or [`NO_MESH_TEXTURE`]; empty
+    /// when the mesh has no textures.
+    pub vertex_textures: Vec<u32>,
     /// Where the mesh came from (a file path, or e.g. `"tessellated sphere"`).
     pub source: String,
 }
@@ -74,6 +90,22 @@ impl Mesh {
                 self.positions.len()
             ));
         }
+        if !self.uvs.is_empty() && self.uvs.len() != self.positions.len() {
+            return Err(format!(
+                "mesh has {} texture coordinates for {} positions",
+                self.uvs.len(),
+                self.positions.len()
+            ));
+        }
+        if !self.vertex_textures.is_empty()
+            && (self.vertex_textures.len() != self.positions.len()
+                || self
+                    .vertex_textures
+                    .iter()
+                    .any(|&t| t != NO_MESH_TEXTURE && t as usize >= self.textures.len()))
+        {
+            return Err("mesh has texture indices that do not match its vertices".into());
+        }
         if !self.positions.iter().all(|p| p.is_finite()) {
             return Err("mesh has a non-finite position".into());
         }
@@ -96,7 +128,9 @@ impl Mesh {
                     path: path.to_path_buf(),
                     reason: e.to_string(),
                 })?;
-                Mesh::from_obj_bytes(&bytes, &path.display().to_string())
+                let mut mesh = Mesh::from_obj_bytes(&bytes, &path.display().to_string())?;
+                obj_textures(&mut mesh, &bytes, path)?;
+                Ok(mesh)
             }
             Some("gltf") | Some("glb") => Mesh::from_gltf_file(path),
             _ => Err(SceneError::MeshParse {
@@ -130,6 +164,8 @@ impl Mesh {
             ..Default::default()
         };
         let mut all_have_normals = true;
+        let mut uvs = Vec::new();
+        let mut any_uvs = false;
         for model in &models {
             let m = &model.mesh;
             let base = u32::try_from(mesh.positions.len())
@@ -140,6 +176,16 @@ impl Mesh {
                     .chunks_exact(3)
                     .map(|p| Vec3::new(p[0], p[1], p[2])),
             );
+            if m.texcoords.len() == count * 2 {
+                any_uvs = true;
+                uvs.extend(
+                    m.texcoords
+                        .chunks_exact(2)
+                        .map(|t| Vec2::new(t[0], 1.0 - t[1])),
+                );
+            } else {
+                uvs.extend(std::iter::repeat_n(Vec2::ZERO, count));
+            }
             if m.normals.len() == m.positions.len() {
                 mesh.normals.extend(
                     m.normals
@@ -163,6 +209,9 @@ impl Mesh {
         }
         if !all_have_normals {
             mesh.normals = smooth_normals(&mesh.positions, &mesh.indices);
+        }
+        if any_uvs {
+            mesh.uvs = uvs;
         }
         finish(mesh)
     }
@@ -211,6 +260,12 @@ impl Mesh {
             source: path.display().to_string(),
             ..Default::default()
         };
+        let mut maps = GltfMaps {
+            path,
+            base,
+            buffers: &buffers,
+            loaded: HashMap::new(),
+        };
         let mut stack: Vec<(gltf::Node, Mat4, usize)> =
             scene.nodes().map(|n| (n, Mat4::IDENTITY, 0)).collect();
         while let Some((node, parent, depth)) = stack.pop() {
@@ -223,8 +278,14 @@ impl Mesh {
             if let Some(gmesh) = node.mesh() {
                 for primitive in gmesh.primitives() {
                     if primitive.mode() == gltf::mesh::Mode::Triangles {
+                        let first = mesh.positions.len();
                         append_gltf_primitive(&mut mesh, &primitive, &buffers, world)
                             .map_err(&parse_error)?;
+                        let map = maps.material_map(&mut mesh, &primitive.material())?;
+                        if map != NO_MESH_TEXTURE || !mesh.vertex_textures.is_empty() {
+                            mesh.vertex_textures.resize(first, NO_MESH_TEXTURE);
+                            mesh.vertex_textures.resize(mesh.positions.len(), map);
+                        }
                     }
                 }
             }
@@ -232,6 +293,187 @@ impl Mesh {
         }
         finish(mesh)
     }
+}
+
+/// The base-colour maps of a glTF file's materials, loaded once each.
+struct GltfMaps<'a> {
+    path: &'a Path,
+    base: &'a Path,
+    buffers: &'a [gltf::buffer::Data],
+    /// (glTF image index, baseColorFactor bits) -> index into the mesh's
+    /// textures: materials sharing an image and factor share the texture.
+    loaded: HashMap<(usize, [u32; 3]), u32>,
+}
+
+impl GltfMaps<'_> {
+    /// The mesh texture of `material` (loading it the first time), or
+    /// [`NO_MESH_TEXTURE`] when it has no base-colour texture.
+    fn material_map(
+        &mut self,
+        mesh: &mut Mesh,
+        material: &gltf::Material,
+    ) -> Result<u32, SceneError> {
+        let pbr = material.pbr_metallic_roughness();
+        let Some(info) = pbr.base_color_texture() else {
+            return Ok(NO_MESH_TEXTURE);
+        };
+        let factor = pbr.base_color_factor();
+        let key = (
+            info.texture().source().index(),
+            [factor[0], factor[1], factor[2]].map(f32::to_bits),
+        );
+        if let Some(&i) = self.loaded.get(&key) {
+            return Ok(i);
+        }
+        let name = material
+            .name()
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("glTF material {}", material.index().unwrap_or(0)));
+        let image = info.texture().source();
+        let file_name = self.path.display().to_string();
+        let (bytes, image_path, source): (Vec<u8>, PathBuf, String) = match image.source() {
+            gltf::image::Source::View { view, .. } => {
+                let data = self
+                    .buffers
+                    .get(view.buffer().index())
+                    .map(|d| d.0.as_slice())
+                    .unwrap_or(&[]);
+                let bytes = data
+                    .get(view.offset()..view.offset() + view.length())
+                    .ok_or_else(|| SceneError::Texture {
+                        path: self.path.to_path_buf(),
+                        material: name.clone(),
+                        reason: format!("image {} lies outside its buffer", image.index()),
+                    })?;
+                (
+                    bytes.to_vec(),
+                    self.path.to_path_buf(),
+                    format!("{file_name} image {}", image.index()),
+                )
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                if let Some(data) = uri.strip_prefix("data:") {
+                    let encoded = data.split_once(";base64,").map(|(_, b)| b).ok_or_else(|| {
+                        SceneError::Texture {
+                            path: self.path.to_path_buf(),
+                            material: name.clone(),
+                            reason: "a data: image URI that is not base64".into(),
+                        }
+                    })?;
+                    use base64::Engine;
+                    let bytes = base64::engine::general_purpose::STANDARD
+                        .decode(encoded)
+                        .map_err(|e| SceneError::Texture {
+                            path: self.path.to_path_buf(),
+                            material: name.clone(),
+                            reason: format!("bad base64 in a data: image URI: {e}"),
+                        })?;
+                    (
+                        bytes,
+                        self.path.to_path_buf(),
+                        format!("{file_name} image {}", image.index()),
+                    )
+                } else {
+                    let file = self.base.join(uri);
+                    let bytes = std::fs::read(&file).map_err(|e| SceneError::Texture {
+                        path: file.clone(),
+                        material: name.clone(),
+                        reason: e.to_string(),
+                    })?;
+                    let source = file.display().to_string();
+                    (bytes, file, source)
+                }
+            }
+        };
+        let mut texture = Texture::decode(&bytes, Path::new(&source), &name)?;
+        texture.source = source;
+        texture.path = image_path;
+        if factor[..3] != [1.0, 1.0, 1.0] {
+            multiply_linear(&mut texture, Vec3::new(factor[0], factor[1], factor[2]));
+        }
+        let index = mesh.textures.len() as u32;
+        mesh.textures.push(Arc::new(texture));
+        self.loaded.insert(key, index);
+        Ok(index)
+    }
+}
+
+/// Multiplies every texel by `factor` in linear light (sRGB re-encoded).
+fn multiply_linear(texture: &mut Texture, factor: Vec3) {
+    for px in texture.rgba8.chunks_exact_mut(4) {
+        for c in 0..3 {
+            let v = (srgb_to_linear(px[c]) * factor[c]).clamp(0.0, 1.0);
+            let s = if v <= 0.003_130_8 {
+                v * 12.92
+            } else {
+                1.055 * v.powf(1.0 / 2.4) - 0.055
+            };
+            px[c] = (s * 255.0 + 0.5) as u8;
+        }
+    }
+}
+
+/// Reads the `map_Kd` images of an OBJ file's material library (`mtllib`,
+/// relative to the OBJ) and assigns them to the vertices of the objects
+/// that use them. A missing library or image is an error naming the file
+/// and the material.
+fn obj_textures(mesh: &mut Mesh, bytes: &[u8], path: &Path) -> Result<(), SceneError> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let library_error = std::cell::RefCell::new(None);
+    let (models, materials) = tobj::load_obj_buf(&mut Cursor::new(bytes), &options, |lib| {
+        let file = dir.join(lib);
+        let loaded = tobj::load_mtl(&file);
+        if let Err(e) = &loaded {
+            *library_error.borrow_mut() = Some((file, e.to_string()));
+        }
+        loaded
+    })
+    .map_err(|e| SceneError::MeshParse {
+        path: path.to_path_buf(),
+        reason: format!("invalid OBJ: {e}"),
+    })?;
+    if let Some((file, reason)) = library_error.into_inner() {
+        return Err(SceneError::MeshParse {
+            path: path.to_path_buf(),
+            reason: format!(
+                "cannot read its material library {}: {reason}",
+                file.display()
+            ),
+        });
+    }
+    let materials = materials.map_err(|e| SceneError::MeshParse {
+        path: path.to_path_buf(),
+        reason: format!("invalid material library: {e}"),
+    })?;
+    let mut loaded: HashMap<usize, u32> = HashMap::new();
+    let mut vertex_textures = Vec::with_capacity(mesh.positions.len());
+    for model in &models {
+        let count = model.mesh.positions.len() / 3;
+        let mut map = NO_MESH_TEXTURE;
+        if let Some(id) = model.mesh.material_id {
+            if let Some(&i) = loaded.get(&id) {
+                map = i;
+            } else if let Some(material) = materials.get(id) {
+                if let Some(file) = &material.diffuse_texture {
+                    let file = dir.join(file.trim());
+                    let texture = Texture::load(&file, &material.name)?;
+                    map = mesh.textures.len() as u32;
+                    mesh.textures.push(Arc::new(texture));
+                }
+                loaded.insert(id, map);
+            }
+        }
+        vertex_textures.extend(std::iter::repeat_n(map, count));
+    }
+    if !mesh.textures.is_empty() && vertex_textures.len() == mesh.positions.len() {
+        mesh.vertex_textures = vertex_textures;
+    }
+    Ok(())
 }
 
 /// Adds one glTF primitive, transformed by `world`, to `mesh`.
@@ -277,6 +519,27 @@ fn append_gltf_primitive(
         return Err("NORMAL and POSITION attributes have different lengths".into());
     }
     let base = u32::try_from(mesh.positions.len()).map_err(|_| "too many vertices")?;
+    let tex_coord = primitive
+        .material()
+        .pbr_metallic_roughness()
+        .base_color_texture()
+        .map_or(0, |t| t.tex_coord());
+    let uvs: Vec<Vec2> = match reader.read_tex_coords(tex_coord) {
+        Some(tc) => tc.into_f32().map(Vec2::from).collect(),
+        None => Vec::new(),
+    };
+    if !uvs.is_empty() && uvs.len() != positions.len() {
+        return Err("TEXCOORD and POSITION attributes have different lengths".into());
+    }
+    // Keep `uvs` parallel to `positions` across primitives with and without.
+    if !uvs.is_empty() && mesh.uvs.len() < mesh.positions.len() {
+        mesh.uvs.resize(mesh.positions.len(), Vec2::ZERO);
+    }
+    if !mesh.uvs.is_empty() || !uvs.is_empty() {
+        let n = positions.len();
+        mesh.uvs.extend(uvs);
+        mesh.uvs.resize(mesh.positions.len() + n, Vec2::ZERO);
+    }
     mesh.positions.extend(positions);
     mesh.normals.extend(normals);
     mesh.indices.extend(indices.iter().map(|i| base + i));

@@ -43,6 +43,14 @@
 //!         // specular_threshold (0.5) and rim (none).
 //!         "skin": (base_color: (0.9, 0.7, 0.6), model: Toon(thresholds: [0.2, 0.5, 0.8],
 //!                  rim: Some((color: (0.3, 0.3, 0.3), threshold: 0.6)))),
+//!         // A PNG (relative to this file) replaces base_color; optional uv_scale
+//!         // (1, 1) repeats it and texture_filter (Linear | Nearest) filters it.
+//!         "spotted": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 4),
+//!                     base_color_texture: "../models/spot/spot_texture.png", uv_scale: (2.0, 2.0)),
+//!         // A checker in the shape's object space (cells `size` wide, one centred
+//!         // on the origin); it takes precedence over a texture.
+//!         "tiles": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong,
+//!                   base_color_pattern: Checker(a: (0.8, 0.8, 0.8), b: (0.2, 0.2, 0.2), size: 0.5)),
 //!     },
 //!     shapes: {
 //!         "ball": Sphere(radius: 1.0),
@@ -89,6 +97,18 @@
 //! - Instance transforms must be finite, affine and invertible
 //!   (`|det| >= 1e-8`).
 //! - All colours are linear RGB.
+//! - Textures: images are PNG, sRGB-encoded; at most [`MAX_TEXTURES`]
+//!   distinct images per scene (materials' and meshes' own together), each
+//!   downscaled to at most [`MAX_TEXTURE_SIZE`] with a notice. A missing or
+//!   undecodable image is an error naming the file and the material. Meshes
+//!   bring their own maps (glTF `baseColorTexture` times `baseColorFactor`,
+//!   OBJ `map_Kd`), used where the instance's material has no image or
+//!   pattern. Texture coordinates of analytic shapes: a quad maps x from
+//!   -half.x to +half.x to u in [0, 1] and z likewise to v; a disk its
+//!   bounding square; a sphere u = atan2(z, x) / 2 pi + 1/2 (the seam at -x, growing
+//!   from +x towards +z), v = 0 at the north pole (+y) to 1 at the south; cylinder and cone
+//!   sides u = longitude, v = 0 at the top, caps like a disk; a box the whole
+//!   image on each face, upright on the sides.
 
 mod camera_path;
 mod convert;
@@ -100,6 +120,7 @@ mod mesh;
 mod overrides;
 mod shape;
 mod tessellate;
+mod texture;
 mod validate;
 
 use std::path::Path;
@@ -115,10 +136,14 @@ pub use file::{DEFAULT_AMBIENT, DEFAULT_BACKGROUND, MAX_NESTING, SCENE_FORMAT_VE
 pub use material::{
     parse_shading_model, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
 };
-pub use mesh::{smooth_normals, Mesh};
+pub use mesh::{smooth_normals, Mesh, NO_MESH_TEXTURE};
 pub use overrides::OVERRIDE_KEYS;
 pub use shape::{PlaneKind, Shape};
 pub use tessellate::{tessellate, ROUND_SEGMENTS, SPHERE_RINGS, SPHERE_SEGMENTS};
+pub use texture::{
+    srgb_to_linear, BaseColorTexture, Pattern, Texture, TextureFilter, MAX_TEXTURES,
+    MAX_TEXTURE_SIZE,
+};
 pub use validate::{MAX_IMAGE_SIZE, MIN_TRANSFORM_DETERMINANT};
 
 /// A complete scene, validated (see [`Scene::validate`]).
