@@ -22,6 +22,18 @@ struct VsOut {
     @location(2) @interpolate(flat) instance: u32,
     @location(3) @interpolate(flat) material: u32,
     @location(4) @interpolate(flat) mirrored: u32,
+    // The material's shading fields, read once per vertex and passed flat:
+    // a fragment reading them from the storage buffer costs the CPU driver
+    // a gather per field per fragment (it cannot tell that all fragments of
+    // a triangle share the material).
+    @location(5) @interpolate(flat) base_shininess: vec4<f32>,
+    @location(6) @interpolate(flat) specular: vec4<f32>,
+    @location(7) @interpolate(flat) rim: vec4<f32>,
+    @location(8) @interpolate(flat) model_bands: vec2<u32>,
+    @location(9) @interpolate(flat) thresholds0: vec4<f32>,
+    @location(10) @interpolate(flat) thresholds1: vec4<f32>,
+    @location(11) @interpolate(flat) thresholds2: vec4<f32>,
+    @location(12) @interpolate(flat) thresholds3: vec4<f32>,
 }
 
 // What textured scenes' fragments also need (vs_textured / fs_textured):
@@ -53,8 +65,17 @@ fn vs_main(
     out.world_pos = p.xyz;
     out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
     out.instance = instance;
-    out.material = instances[instance].material;
+    let material = instances[instance].material;
+    out.material = material;
     out.mirrored = instances[instance].mirrored;
+    out.base_shininess = vec4<f32>(materials[material].base_color, materials[material].shininess);
+    out.specular = vec4<f32>(materials[material].specular_color, materials[material].specular_threshold);
+    out.rim = vec4<f32>(materials[material].rim_color, materials[material].rim_threshold);
+    out.model_bands = vec2<u32>(materials[material].model, materials[material].band_count);
+    out.thresholds0 = materials[material].thresholds[0];
+    out.thresholds1 = materials[material].thresholds[1];
+    out.thresholds2 = materials[material].thresholds[2];
+    out.thresholds3 = materials[material].thresholds[3];
     return out;
 }
 
@@ -122,7 +143,19 @@ fn shade_fragment(m: GpuMaterial, world_pos: vec3<f32>, world_normal: vec3<f32>,
 
 @fragment
 fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
-    return shade_fragment(materials[in.material], in.world_pos, in.world_normal, in.instance, in.mirrored, front_facing);
+    // The fields shading reads, from the flat inputs; the others stay zero
+    // (untextured scenes never read them here).
+    var m: GpuMaterial;
+    m.base_color = in.base_shininess.xyz;
+    m.shininess = in.base_shininess.w;
+    m.specular_color = in.specular.xyz;
+    m.specular_threshold = in.specular.w;
+    m.rim_color = in.rim.xyz;
+    m.rim_threshold = in.rim.w;
+    m.model = in.model_bands.x;
+    m.band_count = in.model_bands.y;
+    m.thresholds = array<vec4<f32>, 4>(in.thresholds0, in.thresholds1, in.thresholds2, in.thresholds3);
+    return shade_fragment(m, in.world_pos, in.world_normal, in.instance, in.mirrored, front_facing);
 }
 
 @fragment

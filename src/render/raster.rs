@@ -37,7 +37,7 @@ impl RasterPass {
                     entries: &[
                         uniform_entry(0, vf),
                         read_only_storage_entry(1, vf),
-                        read_only_storage_entry(2, wgpu::ShaderStages::FRAGMENT),
+                        read_only_storage_entry(2, vf),
                         read_only_storage_entry(3, wgpu::ShaderStages::FRAGMENT),
                         read_only_storage_entry(4, wgpu::ShaderStages::FRAGMENT),
                         map_array_entry(5, wgpu::ShaderStages::FRAGMENT),
