@@ -48,7 +48,7 @@ struct VsOutTextured {
     @location(5) object_pos: vec3<f32>,
     @location(6) object_normal: vec3<f32>,
     @location(7) uv: vec2<f32>,
-    // The mesh's own base-colour map layer, or NO_TEXTURE.
+    // The mesh's own base-colour map word (layer and sampler bits), or NO_TEXTURE.
     @location(8) @interpolate(flat) map: u32,
 }
 
@@ -204,7 +204,7 @@ fn raster_albedo(in: VsOutTextured, m: GpuMaterial) -> vec3<f32> {
         return sample_map_level(m.texture_layer, m.texture_nearest != 0u, uv * m.uv_scale, lod);
     }
     if in.map != NO_TEXTURE {
-        return sample_map_level(in.map, false, uv * m.uv_scale, lod);
+        return sample_map(in.map, uv * m.uv_scale, lod);
     }
     return m.base_color;
 }

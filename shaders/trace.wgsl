@@ -27,7 +27,8 @@
 @group(0) @binding(11) var base_color_maps: texture_2d_array<f32>;
 @group(0) @binding(12) var map_linear: sampler;
 @group(0) @binding(13) var map_nearest: sampler;
-// Per mesh triangle: its mesh's own base-colour map layer, or NO_TEXTURE.
+// Per mesh triangle: its mesh's own base-colour map word (layer and glTF
+// sampler bits, see lib/types.wgsl), or NO_TEXTURE.
 @group(0) @binding(14) var<storage, read> triangle_maps: array<u32>;
 @group(1) @binding(0) var raster_normal_depth: texture_2d<f32>;
 @group(1) @binding(1) var raster_id: texture_2d<u32>;
@@ -175,7 +176,7 @@ fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, e1: vec3<f32>, e2:
     if m.texture_layer != NO_TEXTURE {
         return sample_map_level(m.texture_layer, m.texture_nearest != 0u, uv0 * m.uv_scale, lod);
     }
-    return sample_map_level(triangle_maps[hit_triangle], false, uv0 * m.uv_scale, lod);
+    return sample_map(triangle_maps[hit_triangle], uv0 * m.uv_scale, lod);
 }
 
 // Where the ray (o, dn) meets the tangent plane at p with normal n, as an

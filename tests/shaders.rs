@@ -348,3 +348,26 @@ fn driver_variants_validate_and_software_has_no_ray_queries() {
         assert_eq!(software.matches("fn trace(").count(), 1, "{name}");
     }
 }
+
+/// The map word's layout (layer bits, glTF sampler bits) agrees between
+/// src/gpu/twins.rs and shaders/lib/types.wgsl, in both passes' modules.
+#[test]
+fn map_word_constants_match() {
+    for file in ["raster.wgsl", "trace.wgsl"] {
+        let module = parse(file);
+        for (name, value) in [
+            ("MAP_LAYER_MASK", MAP_LAYER_MASK),
+            ("MAP_WRAP_S_SHIFT", MAP_WRAP_S_SHIFT),
+            ("MAP_WRAP_T_SHIFT", MAP_WRAP_T_SHIFT),
+            ("MAP_WRAP_REPEAT", MAP_WRAP_REPEAT),
+            ("MAP_WRAP_CLAMP", MAP_WRAP_CLAMP),
+            ("MAP_WRAP_MIRROR", MAP_WRAP_MIRROR),
+            ("MAP_MAG_NEAREST", MAP_MAG_NEAREST),
+            ("MAP_MIN_NEAREST", MAP_MIN_NEAREST),
+            ("MAP_MIP_NEAREST", MAP_MIP_NEAREST),
+            ("MAP_NO_MIPS", MAP_NO_MIPS),
+        ] {
+            assert_eq!(wgsl_u32_constant(&module, name), value, "{file}: {name}");
+        }
+    }
+}

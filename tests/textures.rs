@@ -646,3 +646,272 @@ fn shipped_models_bring_their_maps() {
     assert_eq!(maps("fox"), (1, true));
     assert_eq!(maps("helmet"), (5, true));
 }
+
+/// Writes `quad.gltf` in `dir`: the unit quad (x and z from -1 to 1 at
+/// y = 0, facing +y) with texture coordinates running linearly from
+/// (lo, lo) at (-1, -1) to (hi, hi) at (1, 1), textured with the 4x4
+/// `texel4` image (a data: URI) through a sampler with the given JSON
+/// fields.
+fn write_sampler_quad(dir: &Path, lo: f32, hi: f32, sampler: &str) {
+    use base64::Engine;
+    let mut png = Vec::new();
+    image::RgbaImage::from_fn(4, 4, |x, y| image::Rgba(texel4(x, y)))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let corners = [[-1.0f32, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+    let mut bin: Vec<u8> = Vec::new();
+    for c in corners {
+        for v in [c[0], 0.0, c[1]] {
+            bin.extend(v.to_le_bytes());
+        }
+    }
+    for _ in corners {
+        for v in [0.0f32, 1.0, 0.0] {
+            bin.extend(v.to_le_bytes());
+        }
+    }
+    let at = |c: f32| lo + (hi - lo) * (c + 1.0) / 2.0;
+    for c in corners {
+        for v in [at(c[0]), at(c[1])] {
+            bin.extend(v.to_le_bytes());
+        }
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend(i.to_le_bytes());
+    }
+    let b64 = base64::engine::general_purpose::STANDARD;
+    let gltf = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}},
+                               "indices": 3, "material": 0}}]}}],
+  "materials": [{{"name": "sampled", "pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}}}}}],
+  "textures": [{{"source": 0, "sampler": 0}}],
+  "samplers": [{{{sampler}}}],
+  "images": [{{"uri": "data:image/png;base64,{}"}}],
+  "buffers": [{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 48}},
+                  {{"buffer": 0, "byteOffset": 96, "byteLength": 32}}, {{"buffer": 0, "byteOffset": 128, "byteLength": 12}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, 0, -1], "max": [1, 0, 1]}},
+    {{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"}},
+    {{"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"}},
+    {{"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}}]}}"#,
+        b64.encode(&png),
+        bin.len(),
+        b64.encode(&bin)
+    );
+    std::fs::write(dir.join("quad.gltf"), gltf).unwrap();
+}
+
+/// The glTF quad of [`write_sampler_quad`] seen head-on from 4 units up
+/// with a view 64/30 units wide in a 64 px image: the quad (2 units)
+/// covers pixels 2..62 on both axes, 30 px per unit, image x along +x and
+/// image y along +z. Ambient 1, no lights: a pixel shows its base colour.
+fn sampler_quad_scene(dir: &Path) -> Scene {
+    let fov = 2.0 * (32.0f64 / 30.0 / 4.0).atan().to_degrees();
+    load(
+        dir,
+        &format!(
+            "(version: 1,
+              camera: (eye: (0.0, 4.0, 0.0), target: (0.0, 0.0, 0.0), up: (0.0, 0.0, -1.0),
+                       fov_y_deg: {fov}, width: 64, height: 64),
+              ambient: (1.0, 1.0, 1.0), background: (0.0, 0.0, 1.0),
+              materials: {{ \"m\": (base_color: (0.1, 0.1, 0.1), model: BlinnPhong) }},
+              shapes: {{ \"q\": Mesh(path: \"quad.gltf\") }},
+              instances: [(shape: \"q\", material: \"m\")])"
+        ),
+    )
+}
+
+/// The glTF wrap rules in texel units for an image `n` texels wide: the
+/// texel shown at continuous texel coordinate c (texel k spans [k, k+1)).
+/// Repeat: c - n floor(c / n) (fract of u); clamp to edge: the edge texel
+/// beyond the image; mirrored repeat: period 2n, the second half reflected.
+fn wrapped_texel(mode: &str, c: f32, n: u32) -> u32 {
+    let n = n as f32;
+    let k = match mode {
+        "REPEAT" => (c - n * (c / n).floor()).floor(),
+        "CLAMP_TO_EDGE" => c.floor().clamp(0.0, n - 1.0),
+        "MIRRORED_REPEAT" => {
+            let m = c - 2.0 * n * (c / (2.0 * n)).floor();
+            if m < n {
+                m.floor()
+            } else {
+                (2.0 * n - m).floor()
+            }
+        }
+        _ => unreachable!(),
+    };
+    k as u32
+}
+
+/// glTF sampler wrap modes: texture coordinates run from -1 to 2 across
+/// the quad, so the 4x4 image spans 12 texel cells of 5 px each, cell i
+/// covering pixels 2 + 5i .. 7 + 5i. Each cell's middle pixel centre lies
+/// on the cell's texel centre (continuous texel coordinate i - 4 + 1/2), so
+/// even the default bilinear filter shows one texel there: the one the
+/// glTF rule (wrapped_texel) predicts, in raster and raytrace. The three
+/// cases give every mode on each axis (wrapS != wrapT, so the axes are
+/// independent). Magnified 5x: mip level 0. Tolerance 2 per channel: the
+/// 1 of the head-on test's rounding plus bilinear weights that float error
+/// moves off exactly 0 at a texel centre. (Clamp and mirror would show a
+/// 50/50 blend with the opposite edge at the clamped cells if the
+/// sampler's own repeat addressing leaked in.)
+#[test]
+fn gltf_wrap_modes_show_the_wrapped_texel() {
+    let gpu = gpu();
+    let cases = [
+        ("REPEAT", 10497, "CLAMP_TO_EDGE", 33071),
+        ("CLAMP_TO_EDGE", 33071, "MIRRORED_REPEAT", 33648),
+        ("MIRRORED_REPEAT", 33648, "REPEAT", 10497),
+    ];
+    for (s_name, s, t_name, t) in cases {
+        let dir = temp_dir(&format!("wrap-{s_name}"));
+        write_sampler_quad(&dir, -1.0, 2.0, &format!(r#""wrapS": {s}, "wrapT": {t}"#));
+        let scene = sampler_quad_scene(&dir);
+        for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+            let settings = RenderSettings {
+                mode,
+                ..pixel_centre_settings(&scene)
+            };
+            let (img, _) = render(&gpu, scene.clone(), settings);
+            for j in 0..12u32 {
+                for i in 0..12u32 {
+                    let (px, py) = (4 + 5 * i, 4 + 5 * j);
+                    let tx = wrapped_texel(s_name, i as f32 - 4.0 + 0.5, 4);
+                    let ty = wrapped_texel(t_name, j as f32 - 4.0 + 0.5, 4);
+                    let want = texel4(tx, ty);
+                    let got = rgb_at(&img, 64, px, py);
+                    for c in 0..3 {
+                        assert!(
+                            got[c].abs_diff(want[c]) <= 2,
+                            "{mode:?} wrapS {s_name} wrapT {t_name}: cell ({i}, {j}) at pixel \
+                             ({px}, {py}) is {got:?}, expected texel ({tx}, {ty}) {want:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// glTF magFilter NEAREST: the 4x4 image over the quad (coordinates 0..1)
+/// is magnified 15x, and every pixel of the quad shows exactly one texel's
+/// colour, the texel under its centre ((px - 2) / 15, (py - 2) / 15; texel
+/// edges fall on pixel edges, so no centre is ambiguous): hard edges, in
+/// raster and raytrace (tolerance 1, the head-on test's rounding). The same
+/// quad with magFilter LINEAR must show blended pixels at those edges
+/// (colours at least 8 from every texel's in some channel), or the check
+/// above could not fail.
+#[test]
+fn gltf_nearest_mag_filter_gives_hard_texel_edges() {
+    let gpu = gpu();
+    let texels: Vec<[u8; 4]> = (0..16).map(|k| texel4(k % 4, k / 4)).collect();
+    for (filter, nearest) in [(9728, true), (9729, false)] {
+        let dir = temp_dir(&format!("mag-{filter}"));
+        write_sampler_quad(&dir, 0.0, 1.0, &format!(r#""magFilter": {filter}"#));
+        let scene = sampler_quad_scene(&dir);
+        for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+            let settings = RenderSettings {
+                mode,
+                ..pixel_centre_settings(&scene)
+            };
+            let (img, _) = render(&gpu, scene.clone(), settings);
+            let mut blended = 0;
+            for py in 2..62u32 {
+                for px in 2..62u32 {
+                    let got = rgb_at(&img, 64, px, py);
+                    if nearest {
+                        let want = texel4((px - 2) / 15, (py - 2) / 15);
+                        for c in 0..3 {
+                            assert!(
+                                got[c].abs_diff(want[c]) <= 1,
+                                "{mode:?} NEAREST: pixel ({px}, {py}) is {got:?}, expected {want:?}"
+                            );
+                        }
+                    } else if texels
+                        .iter()
+                        .all(|t| (0..3).any(|c| got[c].abs_diff(t[c]) >= 8))
+                    {
+                        blended += 1;
+                    }
+                }
+            }
+            if !nearest {
+                assert!(blended > 0, "{mode:?} LINEAR: no blended pixel");
+            }
+        }
+    }
+}
+
+/// glTF minFilter: coordinates 0..32 put 128 texels of the 4x4 image
+/// across the quad's 60 px, a footprint of 128/60 texels per pixel
+/// (uniform on a plane facing the camera), mip level log2(128/60) = 1.09.
+/// minFilter NEAREST (no mipmaps) reads level 0's nearest texel: every
+/// pixel is one of the image's 16 colours. NEAREST_MIPMAP_NEAREST reads
+/// level 1 (1.09 rounds to 1): every pixel is one of the 4 colours of the
+/// library's level 1 (`mip_chain`). Tolerance 1 (rounding, as above). The
+/// default (trilinear, between levels 1 and 2) shows pixels that are
+/// neither, so both checks could fail.
+#[test]
+fn gltf_min_filter_picks_level_and_texel() {
+    let gpu = gpu();
+    let image = celray::scene::Texture {
+        source: "texel4".into(),
+        path: PathBuf::new(),
+        width: 4,
+        height: 4,
+        rgba8: (0..16).flat_map(|k| texel4(k % 4, k / 4)).collect(),
+    };
+    let chain = celray::render::textures::mip_chain(&image, 4);
+    let palette = |level: usize| -> Vec<[u8; 3]> {
+        chain[level]
+            .1
+            .chunks_exact(4)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect()
+    };
+    let matches = |got: [u8; 3], colours: &[[u8; 3]]| {
+        colours
+            .iter()
+            .any(|t| (0..3).all(|c| got[c].abs_diff(t[c]) <= 1))
+    };
+    for (filter, level) in [(9728, Some(0)), (9984, Some(1)), (9987, None)] {
+        let dir = temp_dir(&format!("min-{filter}"));
+        write_sampler_quad(&dir, 0.0, 32.0, &format!(r#""minFilter": {filter}"#));
+        let scene = sampler_quad_scene(&dir);
+        for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+            let settings = RenderSettings {
+                mode,
+                ..pixel_centre_settings(&scene)
+            };
+            let (img, _) = render(&gpu, scene.clone(), settings);
+            let mut off_palette = 0;
+            for py in 2..62u32 {
+                for px in 2..62u32 {
+                    let got = rgb_at(&img, 64, px, py);
+                    match level {
+                        Some(l) => assert!(
+                            matches(got, &palette(l)),
+                            "{mode:?} minFilter {filter}: pixel ({px}, {py}) is {got:?}, \
+                             not a level-{l} texel {:?}",
+                            palette(l)
+                        ),
+                        None => {
+                            if !matches(got, &palette(0)) && !matches(got, &palette(1)) {
+                                off_palette += 1;
+                            }
+                        }
+                    }
+                }
+            }
+            if level.is_none() {
+                assert!(
+                    off_palette > 0,
+                    "{mode:?} trilinear: every pixel is a texel"
+                );
+            }
+        }
+    }
+}

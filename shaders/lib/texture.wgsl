@@ -89,6 +89,65 @@ fn sample_map_level(layer: u32, nearest: bool, uv: vec2<f32>, lod: f32) -> vec3<
     return textureSampleLevel(base_color_maps, map_linear, uv, layer, lod).rgb;
 }
 
+// One texture coordinate wrapped by a glTF wrap mode, kept at least h
+// (half a texel of the level sampled) inside the edges for clamp and
+// mirror, so that the samplers' own repeat addressing never blends in the
+// opposite edge: clamp = the edge texel beyond [0, 1], mirror = reflected
+// every other period. Repeat is left to the sampler (it repeats).
+fn wrap_coord(x: f32, mode: u32, h: f32) -> f32 {
+    if mode == MAP_WRAP_CLAMP {
+        return clamp(x, h, 1.0 - h);
+    }
+    if mode == MAP_WRAP_MIRROR {
+        let t = x - 2.0 * floor(0.5 * x);
+        return clamp(1.0 - abs(t - 1.0), h, 1.0 - h);
+    }
+    return x;
+}
+
+// Mip level `level` (a whole number) of layer `layer` at uv wrapped by
+// the map word's modes, nearest or bilinear within the level.
+fn map_tap(word: u32, uv: vec2<f32>, level: f32, nearest: bool) -> vec3<f32> {
+    let layer = word & MAP_LAYER_MASK;
+    let edge = max(textureDimensions(base_color_maps).x >> u32(level), 1u);
+    let h = 0.5 / f32(edge);
+    let st = vec2<f32>(
+        wrap_coord(uv.x, (word >> MAP_WRAP_S_SHIFT) & 3u, h),
+        wrap_coord(uv.y, (word >> MAP_WRAP_T_SHIFT) & 3u, h),
+    );
+    if nearest {
+        return textureSampleLevel(base_color_maps, map_nearest, st, layer, level).rgb;
+    }
+    return textureSampleLevel(base_color_maps, map_linear, st, layer, level).rgb;
+}
+
+// A map word (layer and glTF sampler bits) at uv at mip level `lod`, as a
+// glTF viewer samples it: lod <= 0 is magnification (the mag filter at
+// level 0); otherwise the min filter at level 0 (no mips), at the nearest
+// level, or blended between the two levels around lod. The default word
+// (repeat, trilinear) is one hardware trilinear sample, as before.
+fn sample_map(word: u32, uv: vec2<f32>, lod: f32) -> vec3<f32> {
+    if word <= MAP_LAYER_MASK {
+        return sample_map_level(word, false, uv, lod);
+    }
+    let mag = lod <= 0.0;
+    let nearest = select((word & MAP_MIN_NEAREST) != 0u, (word & MAP_MAG_NEAREST) != 0u, mag);
+    if mag || (word & MAP_NO_MIPS) != 0u {
+        return map_tap(word, uv, 0.0, nearest);
+    }
+    let top = f32(textureNumLevels(base_color_maps) - 1u);
+    let l = min(lod, top);
+    if (word & MAP_MIP_NEAREST) != 0u {
+        return map_tap(word, uv, floor(l + 0.5), nearest);
+    }
+    let l0 = floor(l);
+    let a = map_tap(word, uv, l0, nearest);
+    if l <= l0 {
+        return a;
+    }
+    return mix(a, map_tap(word, uv, l0 + 1.0, nearest), l - l0);
+}
+
 // The mip level whose texels match a footprint whose two axes span the
 // texture-coordinate steps duv1 and duv2 (the larger one decides, as
 // hardware trilinear filtering does).

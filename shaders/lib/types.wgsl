@@ -78,6 +78,20 @@ struct GpuMaterial {
 
 const NO_TEXTURE: u32 = 0xffffffffu;
 
+// A mesh map word: the array layer in the low bits, the glTF sampler's
+// settings above (all zero: repeat, linear, trilinear); see
+// shaders/lib/texture.wgsl's sample_map.
+const MAP_LAYER_MASK: u32 = 0xffu;
+const MAP_WRAP_S_SHIFT: u32 = 8u;
+const MAP_WRAP_T_SHIFT: u32 = 10u;
+const MAP_WRAP_REPEAT: u32 = 0u;
+const MAP_WRAP_CLAMP: u32 = 1u;
+const MAP_WRAP_MIRROR: u32 = 2u;
+const MAP_MAG_NEAREST: u32 = 4096u;
+const MAP_MIN_NEAREST: u32 = 8192u;
+const MAP_MIP_NEAREST: u32 = 16384u;
+const MAP_NO_MIPS: u32 = 32768u;
+
 struct GpuInstance {
     world_from_object: mat4x4<f32>,
     // Inverse of world_from_object: takes rays into object space.

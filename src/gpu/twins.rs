@@ -72,6 +72,45 @@ pub struct GpuMaterial {
 /// [`GpuMaterial::texture_layer`] of a material without an image.
 pub const NO_TEXTURE: u32 = u32::MAX;
 
+// A mesh map word (the raster vertex's `map`, the trace pass's
+// `triangle_maps`): the array layer in the low bits, the glTF sampler's
+// settings above it (all zero: repeat, linear, trilinear), or NO_TEXTURE.
+/// Bits of a map word that hold the array layer.
+pub const MAP_LAYER_MASK: u32 = 0xff;
+/// Shift of the 2-bit wrap mode along u (glTF wrapS).
+pub const MAP_WRAP_S_SHIFT: u32 = 8;
+/// Shift of the 2-bit wrap mode along v (glTF wrapT).
+pub const MAP_WRAP_T_SHIFT: u32 = 10;
+/// Wrap mode values (2 bits each).
+pub const MAP_WRAP_REPEAT: u32 = 0;
+pub const MAP_WRAP_CLAMP: u32 = 1;
+pub const MAP_WRAP_MIRROR: u32 = 2;
+/// Nearest texel when magnified.
+pub const MAP_MAG_NEAREST: u32 = 1 << 12;
+/// Nearest texel within a level when minified.
+pub const MAP_MIN_NEAREST: u32 = 1 << 13;
+/// The nearest mip level rather than a blend of two.
+pub const MAP_MIP_NEAREST: u32 = 1 << 14;
+/// Level 0 only.
+pub const MAP_NO_MIPS: u32 = 1 << 15;
+
+/// The sampler bits of a map word.
+pub fn map_sampler_bits(s: &crate::scene::MapSampler) -> u32 {
+    use crate::scene::Wrap;
+    let wrap = |w: Wrap| match w {
+        Wrap::Repeat => MAP_WRAP_REPEAT,
+        Wrap::ClampToEdge => MAP_WRAP_CLAMP,
+        Wrap::MirroredRepeat => MAP_WRAP_MIRROR,
+    };
+    let flag = |on: bool, bit: u32| if on { bit } else { 0 };
+    wrap(s.wrap_s) << MAP_WRAP_S_SHIFT
+        | wrap(s.wrap_t) << MAP_WRAP_T_SHIFT
+        | flag(s.mag_nearest, MAP_MAG_NEAREST)
+        | flag(s.min_nearest, MAP_MIN_NEAREST)
+        | flag(s.mip_nearest, MAP_MIP_NEAREST)
+        | flag(s.no_mips, MAP_NO_MIPS)
+}
+
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuInstance {

@@ -5,7 +5,10 @@
 
 use std::sync::Arc;
 
-use crate::gpu::twins::NO_TEXTURE;
+use crate::gpu::twins::{map_sampler_bits, MAP_LAYER_MASK, NO_TEXTURE};
+
+// Every layer index fits in a map word's layer bits.
+const _: () = assert!(MAX_TEXTURES as u32 <= MAP_LAYER_MASK + 1);
 use crate::gpu::{Gpu, GpuError};
 use crate::scene::{srgb_to_linear, Scene, Shape, Texture, MAX_TEXTURES, MAX_TEXTURE_SIZE};
 
@@ -178,11 +181,16 @@ impl SceneTextures {
         })
     }
 
-    /// Array layer of each of `mesh`'s own textures.
+    /// Map word of each of `mesh`'s own textures: its array layer with its
+    /// sampler's bits (see [`MAP_LAYER_MASK`]).
     pub fn mesh_layers(&self, mesh: &crate::scene::Mesh) -> Vec<u32> {
         mesh.textures
             .iter()
-            .map(|t| self.layer_of(t).unwrap_or(NO_TEXTURE))
+            .enumerate()
+            .map(|(i, t)| match self.layer_of(t) {
+                Some(layer) => layer | mesh.texture_samplers.get(i).map_or(0, map_sampler_bits),
+                None => NO_TEXTURE,
+            })
             .collect()
     }
 

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use glam::{Mat3, Mat4, Vec2, Vec3};
 
 use super::texture::srgb_to_linear;
-use super::{SceneError, Texture};
+use super::{MapSampler, SceneError, Texture};
 
 /// [`Mesh::vertex_textures`] of a vertex without a map.
 pub const NO_MESH_TEXTURE: u32 = u32::MAX;
@@ -33,6 +33,9 @@ pub struct Mesh {
     /// `baseColorTexture` with `baseColorFactor` multiplied in, OBJ `map_Kd`),
     /// shown where the instance's material has no image or pattern.
     pub textures: Vec<Arc<Texture>>,
+    /// How each of `textures` is sampled (glTF samplers), parallel to it, or
+    /// empty when every map takes the default (repeat, trilinear).
+    pub texture_samplers: Vec<MapSampler>,
     /// Per vertex: an index into `textures`, or [`NO_MESH_TEXTURE`]; empty
     /// when the mesh has no textures.
     pub vertex_textures: Vec<u32>,
@@ -105,6 +108,13 @@ impl Mesh {
                     .any(|&t| t != NO_MESH_TEXTURE && t as usize >= self.textures.len()))
         {
             return Err("mesh has texture indices that do not match its vertices".into());
+        }
+        if !self.texture_samplers.is_empty() && self.texture_samplers.len() != self.textures.len() {
+            return Err(format!(
+                "mesh has {} texture samplers for {} textures",
+                self.texture_samplers.len(),
+                self.textures.len()
+            ));
         }
         if !self.positions.iter().all(|p| p.is_finite()) {
             return Err("mesh has a non-finite position".into());
@@ -217,8 +227,8 @@ impl Mesh {
     }
 
     /// Loads a glTF 2.0 file (`.gltf` with external or `data:` buffers, or
-    /// `.glb`). Only buffers are read; images are ignored, so missing
-    /// textures do not matter.
+    /// `.glb`), with each material's base-colour image and its sampler
+    /// (wrap and filter modes).
     ///
     /// The node tree of the default scene (or the first scene) is walked,
     /// node transforms are applied (normals with the inverse transpose) and
@@ -264,6 +274,7 @@ impl Mesh {
             path,
             base,
             buffers: &buffers,
+            images: HashMap::new(),
             loaded: HashMap::new(),
         };
         let mut stack: Vec<(gltf::Node, Mat4, usize)> =
@@ -300,9 +311,11 @@ struct GltfMaps<'a> {
     path: &'a Path,
     base: &'a Path,
     buffers: &'a [gltf::buffer::Data],
-    /// (glTF image index, baseColorFactor bits) -> index into the mesh's
-    /// textures: materials sharing an image and factor share the texture.
-    loaded: HashMap<(usize, [u32; 3]), u32>,
+    /// (glTF image index, baseColorFactor bits) -> the decoded image:
+    /// materials sharing an image and factor share the texture.
+    images: HashMap<(usize, [u32; 3]), Arc<Texture>>,
+    /// (image key, sampler) -> index into the mesh's textures.
+    loaded: HashMap<((usize, [u32; 3]), MapSampler), u32>,
 }
 
 impl GltfMaps<'_> {
@@ -322,8 +335,12 @@ impl GltfMaps<'_> {
             info.texture().source().index(),
             [factor[0], factor[1], factor[2]].map(f32::to_bits),
         );
-        if let Some(&i) = self.loaded.get(&key) {
+        let sampler = MapSampler::from_gltf(&info.texture().sampler());
+        if let Some(&i) = self.loaded.get(&(key, sampler)) {
             return Ok(i);
+        }
+        if let Some(texture) = self.images.get(&key) {
+            return Ok(self.add(mesh, key, texture.clone(), sampler));
         }
         let name = material
             .name()
@@ -391,10 +408,24 @@ impl GltfMaps<'_> {
         if factor[..3] != [1.0, 1.0, 1.0] {
             multiply_linear(&mut texture, Vec3::new(factor[0], factor[1], factor[2]));
         }
+        let texture = Arc::new(texture);
+        self.images.insert(key, texture.clone());
+        Ok(self.add(mesh, key, texture, sampler))
+    }
+
+    /// Adds `texture` sampled by `sampler` to the mesh's maps.
+    fn add(
+        &mut self,
+        mesh: &mut Mesh,
+        key: (usize, [u32; 3]),
+        texture: Arc<Texture>,
+        sampler: MapSampler,
+    ) -> u32 {
         let index = mesh.textures.len() as u32;
-        mesh.textures.push(Arc::new(texture));
-        self.loaded.insert(key, index);
-        Ok(index)
+        mesh.textures.push(texture);
+        mesh.texture_samplers.push(sampler);
+        self.loaded.insert((key, sampler), index);
+        index
     }
 }
 

@@ -141,8 +141,8 @@ pub use overrides::OVERRIDE_KEYS;
 pub use shape::{PlaneKind, Shape};
 pub use tessellate::{tessellate, ROUND_SEGMENTS, SPHERE_RINGS, SPHERE_SEGMENTS};
 pub use texture::{
-    srgb_to_linear, BaseColorTexture, Pattern, Texture, TextureFilter, MAX_TEXTURES,
-    MAX_TEXTURE_SIZE,
+    srgb_to_linear, BaseColorTexture, MapSampler, Pattern, Texture, TextureFilter, Wrap,
+    MAX_TEXTURES, MAX_TEXTURE_SIZE,
 };
 pub use validate::{MAX_IMAGE_SIZE, MIN_TRANSFORM_DETERMINANT};
 

@@ -134,6 +134,65 @@ pub enum TextureFilter {
     Nearest,
 }
 
+/// How texture coordinates outside [0, 1] map onto the image along one
+/// axis (glTF sampler `wrapS` / `wrapT`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub enum Wrap {
+    /// The image tiles: u and u + 1 show the same texel.
+    #[default]
+    Repeat,
+    /// The edge texels extend outwards.
+    ClampToEdge,
+    /// The image tiles reflected every other period.
+    MirroredRepeat,
+}
+
+/// How a mesh's own map is sampled (a glTF sampler): wrap per axis, the
+/// filter when magnified and when minified, and how mip levels are used.
+/// The default (repeat, linear, linear between mip levels) is what a glTF
+/// texture without a sampler gets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub struct MapSampler {
+    pub wrap_s: Wrap,
+    pub wrap_t: Wrap,
+    /// Nearest texel when magnified (glTF magFilter NEAREST).
+    pub mag_nearest: bool,
+    /// Nearest texel within a level when minified.
+    pub min_nearest: bool,
+    /// Minification uses the nearest mip level rather than blending two.
+    pub mip_nearest: bool,
+    /// Minification reads level 0 only (glTF minFilter NEAREST or LINEAR).
+    pub no_mips: bool,
+}
+
+impl MapSampler {
+    /// The sampler of a glTF texture (its defaults where a field is absent).
+    pub fn from_gltf(sampler: &gltf::texture::Sampler) -> MapSampler {
+        use gltf::texture::{MagFilter, MinFilter, WrappingMode};
+        let wrap = |w: WrappingMode| match w {
+            WrappingMode::Repeat => Wrap::Repeat,
+            WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        };
+        let (min_nearest, mip_nearest, no_mips) = match sampler.min_filter() {
+            None | Some(MinFilter::LinearMipmapLinear) => (false, false, false),
+            Some(MinFilter::Nearest) => (true, false, true),
+            Some(MinFilter::Linear) => (false, false, true),
+            Some(MinFilter::NearestMipmapNearest) => (true, true, false),
+            Some(MinFilter::LinearMipmapNearest) => (false, true, false),
+            Some(MinFilter::NearestMipmapLinear) => (true, false, false),
+        };
+        MapSampler {
+            wrap_s: wrap(sampler.wrap_s()),
+            wrap_t: wrap(sampler.wrap_t()),
+            mag_nearest: sampler.mag_filter() == Some(MagFilter::Nearest),
+            min_nearest,
+            mip_nearest,
+            no_mips,
+        }
+    }
+}
+
 /// A material's base-colour image and how it is mapped.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BaseColorTexture {
