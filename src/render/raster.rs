@@ -83,18 +83,7 @@ impl RasterPass {
             &scene.lights,
             &scene.shapes,
         ]);
-        entries.push(wgpu::BindGroupEntry {
-            binding: 5,
-            resource: wgpu::BindingResource::TextureView(&scene.textures.view),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 6,
-            resource: wgpu::BindingResource::Sampler(&scene.textures.linear),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 7,
-            resource: wgpu::BindingResource::Sampler(&scene.textures.nearest),
-        });
+        entries.extend(scene.textures.bind_group_entries(5));
         self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raster bind group"),
             layout: &self.layout,

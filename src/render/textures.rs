@@ -183,6 +183,26 @@ impl SceneTextures {
 
     /// Map word of each of `mesh`'s own textures: its array layer with its
     /// sampler's bits (see [`MAP_LAYER_MASK`]).
+    /// Bind-group entries for the map array and its linear and nearest
+    /// samplers at bindings `first`, `first + 1` and `first + 2` (the layout
+    /// side is `map_array_entry` and two `sampler_entry`s).
+    pub fn bind_group_entries(&self, first: u32) -> [wgpu::BindGroupEntry<'_>; 3] {
+        [
+            wgpu::BindGroupEntry {
+                binding: first,
+                resource: wgpu::BindingResource::TextureView(&self.view),
+            },
+            wgpu::BindGroupEntry {
+                binding: first + 1,
+                resource: wgpu::BindingResource::Sampler(&self.linear),
+            },
+            wgpu::BindGroupEntry {
+                binding: first + 2,
+                resource: wgpu::BindingResource::Sampler(&self.nearest),
+            },
+        ]
+    }
+
     pub fn mesh_layers(&self, mesh: &crate::scene::Mesh) -> Vec<u32> {
         mesh.textures
             .iter()

@@ -265,18 +265,7 @@ impl TracePass {
             &scene.csg_leaves,
         ];
         let mut entries = buffer_entries(&buffers);
-        entries.push(wgpu::BindGroupEntry {
-            binding: 11,
-            resource: wgpu::BindingResource::TextureView(&scene.textures.view),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 12,
-            resource: wgpu::BindingResource::Sampler(&scene.textures.linear),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 13,
-            resource: wgpu::BindingResource::Sampler(&scene.textures.nearest),
-        });
+        entries.extend(scene.textures.bind_group_entries(11));
         entries.push(wgpu::BindGroupEntry {
             binding: 14,
             resource: scene.triangle_maps.as_entire_binding(),
