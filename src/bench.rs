@@ -71,7 +71,6 @@ fn time_frames(
         ..RenderSettings::default()
     };
     let mut renderer = Renderer::new(gpu, scene, settings)?;
-    let resolve = renderer.new_resolve_pass(gpu, wgpu::TextureFormat::Rgba8UnormSrgb)?;
     let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("bench target"),
         size: wgpu::Extent3d {
@@ -86,7 +85,6 @@ fn time_frames(
         usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
         view_formats: &[],
     });
-    let view = target.create_view(&Default::default());
     let timed = renderer.enable_pass_timing(gpu);
     let mut times = Vec::new();
     let mut passes: Vec<(&'static str, f64)> = Vec::new();
@@ -94,7 +92,7 @@ fn time_frames(
         let start = Instant::now();
         renderer.render_sample(gpu)?;
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        renderer.encode_resolve(&resolve, &mut encoder, &view);
+        renderer.resolve_into(gpu, &mut encoder, &target)?;
         gpu.queue.submit([encoder.finish()]);
         gpu.wait_idle()?;
         if i < 3 {

@@ -360,16 +360,20 @@ pub fn axis_view(cam: &Camera, view: AxisView, bounds: (Vec3, Vec3), aspect: f32
 
 /// The focus distance that puts the surface seen at `uv` (in [0, 1]^2 over
 /// the view, y down) in focus: the view depth of the first hit of the
-/// primary ray there, found by the CPU ray tracer; None over background.
-pub fn focus_at(scene: &crate::scene::Scene, uv: Vec2) -> Option<f32> {
-    let cam = &scene.camera;
+/// primary ray there; None over background. `closest_hit(origin, dir)` is
+/// the distance along the ray to the scene's closest surface (the app asks
+/// the view's renderer, [`crate::render::Renderer::pick`], which walks the
+/// acceleration structure it already built).
+pub fn focus_at(
+    cam: &Camera,
+    uv: Vec2,
+    closest_hit: impl FnOnce(Vec3, Vec3) -> Option<f32>,
+) -> Option<f32> {
     let size = (1000u32, ((1000.0 / cam.aspect()).round() as u32).max(1));
     let pixel = uv * Vec2::new(size.0 as f32, size.1 as f32);
     let (origin, dir) = crate::render::camera::primary_ray(cam, size, pixel);
-    let order: Vec<usize> = (0..scene.instances.len()).collect();
-    let accel = crate::accel::SceneAccel::build(scene, &order).ok()?;
-    let hit = accel.closest_hit(origin, dir, 0.0, f32::MAX).hit?;
-    Some(hit.t * dir.dot((cam.target - cam.eye).normalize()))
+    let t = closest_hit(origin, dir)?;
+    Some(t * dir.dot((cam.target - cam.eye).normalize()))
 }
 
 #[cfg(test)]
@@ -633,10 +637,13 @@ mod tests {
         )"#;
         let scene =
             crate::scene::Scene::from_ron_str(ron, "t.ron", std::path::Path::new(".")).unwrap();
+        // What Renderer::pick walks: the scene's acceleration structure.
+        let accel = crate::accel::SceneAccel::build(&scene, &[0]).unwrap();
+        let pick = |o, d| accel.closest_hit(o, d, 0.0, f32::MAX).hit.map(|h| h.t);
         // The centre of the view sees the sphere's front pole: depth 5 - 1.
-        let f = focus_at(&scene, Vec2::splat(0.5)).unwrap();
+        let f = focus_at(&scene.camera, Vec2::splat(0.5), pick).unwrap();
         assert!((f - 4.0).abs() < 1e-3, "{f}");
         // A corner sees only background.
-        assert!(focus_at(&scene, Vec2::new(0.02, 0.02)).is_none());
+        assert!(focus_at(&scene.camera, Vec2::new(0.02, 0.02), pick).is_none());
     }
 }

@@ -2,17 +2,32 @@
 //! four views side by side, each drawn by its own [`crate::render::Renderer`]
 //! (the same renderer `celray render` uses), sharing one camera.
 //!
+//! Where things are: [`event_loop`] (winit's handler) drives [`live`] (the
+//! running app's state and its frame, step by step), which uses [`surface`]
+//! (window, present, compose, screenshots), [`overlay`] (egui),
+//! [`views`] (the view slots and their renderers), [`view_ui`] (the view
+//! area's UI and gestures), [`reload`] (hot reload), [`timing`] (frame
+//! statistics over [`crate::gpu::timer::GpuTimer`]), and the plain-data
+//! pieces [`model`], [`panel`], [`controller`], [`layout`], [`watch`],
+//! [`screenshot`].
+//!
 //! Layers: this module imports render, winit and egui; nothing below it
 //! imports this module.
 
 pub mod controller;
+mod event_loop;
 pub mod layout;
+mod live;
 pub mod model;
+mod overlay;
 pub mod panel;
+mod reload;
 pub mod screenshot;
+mod surface;
 pub mod timing;
+mod view_ui;
+mod views;
 pub mod watch;
-mod window;
 
 use std::path::PathBuf;
 
@@ -112,7 +127,7 @@ pub struct RunReport {
 
 /// Opens the window and runs until it is closed (or `exit_after_frames`).
 pub fn run(options: ViewOptions) -> Result<RunReport, AppError> {
-    window::run(options)
+    event_loop::run(options)
 }
 
 #[cfg(test)]

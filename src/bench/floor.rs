@@ -7,7 +7,7 @@ use wgpu::util::DeviceExt;
 use celray::gpu::layout::{
     buffer_entries, read_only_storage_entry, read_write_storage_entry, uniform_entry,
 };
-use celray::gpu::timer::PassTimer;
+use celray::gpu::timer::GpuTimer;
 use celray::gpu::{shader, Gpu};
 
 #[repr(C)]
@@ -100,28 +100,36 @@ pub fn floor_ms(gpu: &Gpu, width: u32, height: u32, n: u32, frames: u32) -> anyh
         layout: &layout,
         entries: &buffer_entries(&[&uniform, &sphere_buffer, &out]),
     });
-    let timer = PassTimer::new(gpu, &["floor"]);
+    let mut timer = GpuTimer::new(gpu, "floor", ["floor"]);
     let mut times = Vec::new();
     for i in 0..=frames.max(1) {
         let start = std::time::Instant::now();
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        if let Some((t, _)) = &mut timer {
+            t.begin();
+        }
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("floor pass"),
-                timestamp_writes: timer.as_ref().map(|t| t.compute_writes("floor")),
+                timestamp_writes: timer
+                    .as_mut()
+                    .and_then(|(t, [floor])| t.compute_writes(*floor)),
             });
             pass.set_pipeline(&pipeline);
             pass.set_bind_group(0, &group, &[]);
             pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
         }
-        if let Some(t) = &timer {
-            t.resolve(&mut encoder);
+        if let Some((t, _)) = &mut timer {
+            t.finish(&mut encoder);
         }
         gpu.queue.submit([encoder.finish()]);
+        if let Some((t, _)) = &mut timer {
+            t.after_submit();
+        }
         gpu.wait_idle()?;
         let wall = start.elapsed().as_secs_f64() * 1e3;
-        let ms = match &timer {
-            Some(t) => t.read(gpu)?.first().map_or(wall, |(_, ms)| *ms),
+        let ms = match &mut timer {
+            Some((t, _)) => t.wait(gpu)?.first().map_or(wall, |(_, ms)| *ms),
             None => wall,
         };
         if i > 0 {

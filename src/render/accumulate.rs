@@ -3,7 +3,6 @@
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
-use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::ACCUMULATE_WORKGROUP;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::scene_buffers::SceneBuffers;
@@ -117,11 +116,11 @@ impl AccumulatePass {
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
         traced: bool,
-        timer: Option<&PassTimer>,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("accumulate pass"),
-            timestamp_writes: timer.map(|t| t.compute_writes("accumulate")),
+            timestamp_writes,
         });
         pass.set_pipeline(&self.pipeline);
         let groups = self.bind_groups.as_ref();

@@ -4,8 +4,13 @@
 //! Per sample k: (1) the raster pass shades every instance into the G-buffer
 //! with the projection jittered to sample k's sub-pixel position; (3) the
 //! accumulate pass adds the G-buffer colour, with outlines, to the float
-//! accumulator. (2, the trace pass, is not built yet.) On demand, (4) the
-//! resolve pass turns the average into a displayable image.
+//! accumulator; in hybrid and raytrace modes (2) the trace pass, between
+//! them, traces what the raster pass cannot draw (see [`trace`]). On
+//! demand, (4) a resolve pass turns the average into a displayable image:
+//! the renderer owns one per target format ([`Renderer::resolve_into`]).
+//! [`Renderer::pick`] answers "what is under this ray" with the CPU copy of
+//! the scene's acceleration structure, and a [`GpuTimer`] times the passes
+//! when asked ([`Renderer::enable_pass_timing`]).
 
 pub mod accumulate;
 pub mod camera;
@@ -22,7 +27,7 @@ pub mod trace;
 
 use wgpu::util::DeviceExt;
 
-use crate::gpu::timer::PassTimer;
+use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::twins::{
     FrameUniforms, ReprojectUniforms, TEMPORAL_REJECT_CLIP, TEMPORAL_REJECT_NONE,
 };
@@ -43,9 +48,33 @@ pub use settings::{
 use targets::Targets;
 use trace::TracePass;
 
-/// The passes [`Renderer::pass_times`] reports, in order (then
-/// "reproject", after a moving frame).
-pub const PASS_NAMES: [&str; 3] = ["raster", "trace", "accumulate"];
+/// The passes [`Renderer::pass_times`] reports, in this order, each when
+/// the last timed sample ran it (no trace in raster mode; reproject only
+/// after a moving frame).
+pub const PASS_NAMES: [&str; 4] = ["raster", "trace", "accumulate", "reproject"];
+
+/// GPU time of a sample's passes: one timer, one span per pass.
+struct SampleTimer {
+    timer: GpuTimer,
+    raster: Span,
+    trace: Span,
+    accumulate: Span,
+    reproject: Span,
+}
+
+impl SampleTimer {
+    fn new(gpu: &Gpu) -> Option<SampleTimer> {
+        let (timer, [raster, trace, accumulate, reproject]) =
+            GpuTimer::new(gpu, "sample passes", PASS_NAMES)?;
+        Some(SampleTimer {
+            timer,
+            raster,
+            trace,
+            accumulate,
+            reproject,
+        })
+    }
+}
 
 /// The most samples a reprojected history counts while the view moves: the
 /// blend weight of a new sample never drops below 1 / (this + 1), so the
@@ -90,17 +119,18 @@ pub struct Renderer {
     raster: RasterPass,
     trace: TracePass,
     accumulate: AccumulatePass,
-    capture_resolve: ResolvePass,
+    /// One resolve pass per target format asked for (the capture format
+    /// first), each kept bound to the current accumulator and settings by
+    /// [`Renderer::bind`].
+    resolves: Vec<ResolvePass>,
     /// The temporal pass, built when `settings.temporal` is not Off.
     reproject: Option<ReprojectPass>,
     temporal: TemporalState,
-    /// GPU time of the reproject pass, when timing is on.
-    reproject_timer: Option<PassTimer>,
     /// Exact samples in the accumulator; 0 after any change (and after a
     /// moving frame, whose accumulator holds the reprojected history).
     samples: u32,
     /// GPU time per pass, when enabled and the adapter has timestamps.
-    timer: Option<PassTimer>,
+    timer: Option<SampleTimer>,
     /// The driver's acceleration structures, when rays walk them
     /// (`settings.accel`); `None` on the software BVH.
     driver: Option<DriverAccel>,
@@ -163,7 +193,7 @@ impl Renderer {
             raster: RasterPass::new(gpu)?,
             trace: TracePass::new(gpu)?,
             accumulate: AccumulatePass::new(gpu)?,
-            capture_resolve: ResolvePass::new(gpu, targets::CAPTURE_FORMAT)?,
+            resolves: vec![ResolvePass::new(gpu, targets::CAPTURE_FORMAT)?],
             scene,
             settings,
             buffers,
@@ -175,7 +205,6 @@ impl Renderer {
             accel_notice,
             reproject: None,
             temporal: TemporalState::default(),
-            reproject_timer: None,
         };
         renderer.bind(gpu)?;
         Ok(renderer)
@@ -217,8 +246,9 @@ impl Renderer {
         }
         self.accumulate
             .prepare(gpu, &self.frame, &self.buffers, &self.targets);
-        self.capture_resolve
-            .prepare(gpu, &self.settings, &self.targets);
+        for pass in &mut self.resolves {
+            pass.prepare(gpu, &self.settings, &self.targets);
+        }
         if self.settings.temporal == Temporal::Off {
             self.reproject = None;
         } else {
@@ -261,6 +291,19 @@ impl Renderer {
     /// The driver's structures, when rays walk them.
     pub fn driver_accel(&self) -> Option<&DriverAccel> {
         self.driver.as_ref()
+    }
+
+    /// Distance along `dir` (a unit vector) from `origin`, in world units,
+    /// to the closest surface of the scene, if any: what is under a ray,
+    /// found on the CPU in the acceleration structure built for the GPU
+    /// (no new build).
+    pub fn pick(&self, origin: glam::Vec3, dir: glam::Vec3) -> Option<f32> {
+        let hit = self
+            .buffers
+            .accel
+            .closest_hit(origin, dir, 0.0, f32::MAX)
+            .hit?;
+        Some(hit.t)
     }
 
     /// Samples averaged so far.
@@ -471,20 +514,10 @@ impl Renderer {
     }
 
     /// Renders one more sample into the accumulator (one dispatch per pass,
-    /// one sample per pixel: see the loop limit in STACK-NOTES.md).
+    /// one sample per pixel: see the loop limit in STACK-NOTES.md), timing
+    /// its passes when [`Renderer::enable_pass_timing`] was called and the
+    /// last timed sample has been read back.
     pub fn render_sample(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
-        self.render_sample_timed(gpu, None)
-    }
-
-    /// [`Renderer::render_sample`], also writing GPU timestamps
-    /// `first`, `first + 1`, `first + 2` of `query_set` before the raster
-    /// pass, between it and the trace + accumulate passes, and after them (the device
-    /// needs `TIMESTAMP_QUERY_INSIDE_ENCODERS`).
-    pub fn render_sample_timed(
-        &mut self,
-        gpu: &Gpu,
-        timestamps: Option<(&wgpu::QuerySet, u32)>,
-    ) -> Result<(), GpuError> {
         // A moving frame (temporal on, camera changed since the last frame)
         // takes the next index of the sample schedule, so jitter, lens and
         // shutter time keep converging through the history.
@@ -519,14 +552,9 @@ impl Renderer {
             uniforms.background[1],
             uniforms.background[2],
         ];
-        let timer = self.timer.as_ref();
         let mode = self.settings.mode;
-        let stamp = |encoder: &mut wgpu::CommandEncoder, i: u32| {
-            if let Some((set, first)) = timestamps {
-                encoder.write_timestamp(set, first + i);
-            }
-        };
-        stamp(&mut encoder, 0);
+        let timed = self.timer.as_mut().is_some_and(|t| t.timer.begin());
+        let mut timer = self.timer.as_mut().filter(|_| timed);
         let traced = mode != RenderMode::Raster;
         if let Some((pass, _)) = &moving {
             pass.encode_snapshot(&mut encoder, &self.targets, traced);
@@ -537,30 +565,44 @@ impl Renderer {
             &self.buffers,
             background,
             mode,
-            timer,
+            timer.as_mut().and_then(|t| t.timer.render_writes(t.raster)),
         );
-        stamp(&mut encoder, 1);
         if let (true, Some(time), Some(driver)) = (traced, motion_time, self.driver.as_mut()) {
             // The driver's top level holds sample k's transforms: rebuilt here.
             driver.encode_motion(&mut encoder, &self.scene, time);
         }
         if traced {
-            self.trace.encode(&mut encoder, &self.targets, timer);
+            self.trace.encode(
+                &mut encoder,
+                &self.targets,
+                timer.as_mut().and_then(|t| t.timer.compute_writes(t.trace)),
+            );
         }
-        self.accumulate
-            .encode(&mut encoder, &self.targets, traced, timer);
+        self.accumulate.encode(
+            &mut encoder,
+            &self.targets,
+            traced,
+            timer
+                .as_mut()
+                .and_then(|t| t.timer.compute_writes(t.accumulate)),
+        );
         if let Some((pass, _)) = &moving {
-            let rt = self.reproject_timer.as_ref().filter(|_| timer.is_some());
-            pass.encode(&mut encoder, &self.targets, traced, rt);
-            if let Some(t) = rt {
-                t.resolve(&mut encoder);
-            }
+            pass.encode(
+                &mut encoder,
+                &self.targets,
+                traced,
+                timer
+                    .as_mut()
+                    .and_then(|t| t.timer.compute_writes(t.reproject)),
+            );
         }
-        stamp(&mut encoder, 2);
-        if let Some(t) = timer {
-            t.resolve(&mut encoder);
+        if let Some(t) = &mut timer {
+            t.timer.finish(&mut encoder);
         }
         gpu.queue.submit([encoder.finish()]);
+        if let Some(t) = &mut self.timer {
+            t.timer.after_submit();
+        }
         self.temporal.last_moved = moving.is_some();
         if moving.is_some() {
             self.temporal.moved = false;
@@ -576,24 +618,24 @@ impl Renderer {
     /// queries); returns whether it can.
     pub fn enable_pass_timing(&mut self, gpu: &Gpu) -> bool {
         if self.timer.is_none() {
-            self.timer = PassTimer::new(gpu, &PASS_NAMES);
-            self.reproject_timer = PassTimer::new(gpu, &["reproject"]);
+            self.timer = SampleTimer::new(gpu);
         }
         self.timer.is_some()
     }
 
-    /// GPU milliseconds per pass of the last sample (blocks until it is done).
-    pub fn pass_times(&self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>, GpuError> {
-        let mut times = match &self.timer {
-            Some(t) => t.read(gpu)?,
-            None => Vec::new(),
-        };
-        if let Some(t) = self.reproject_timer.as_ref() {
-            if self.temporal.last_moved && self.timer.is_some() {
-                times.extend(t.read(gpu)?);
-            }
+    /// GPU milliseconds per pass of the last timed sample, in the order of
+    /// [`PASS_NAMES`] (blocks until it is done; empty without timing).
+    pub fn pass_times(&mut self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>, GpuError> {
+        match &mut self.timer {
+            Some(t) => t.timer.wait(gpu),
+            None => Ok(Vec::new()),
         }
-        Ok(times)
+    }
+
+    /// The pass times of a timed sample whose read-back has finished since
+    /// the last call, without waiting (call after a device poll).
+    pub fn collect_pass_times(&mut self) -> Option<&[(&'static str, f64)]> {
+        self.timer.as_mut().and_then(|t| t.timer.collect())
     }
 
     /// Whether the last sample was a moving frame (blended into the
@@ -640,33 +682,38 @@ impl Renderer {
         gpu.wait_idle()
     }
 
-    /// Draws the resolved image into `view` of the format this renderer's
-    /// capture uses, or into a window surface via [`Renderer::new_resolve_pass`].
-    pub fn encode_resolve(
-        &self,
-        pass: &ResolvePass,
-        encoder: &mut wgpu::CommandEncoder,
-        view: &wgpu::TextureView,
-    ) {
-        pass.encode(encoder, view, None);
-    }
-
-    /// A resolve pass for targets of `format`, bound to this renderer.
-    pub fn new_resolve_pass(
-        &self,
+    /// Records the resolve of the current average (tone mapped, encoded
+    /// for `target`'s format) into `target`, which must be a 2D texture of
+    /// the image's size with `RENDER_ATTACHMENT` usage. The first call for
+    /// a format builds its pass; the renderer keeps every pass bound to its
+    /// current accumulator and settings, so nothing is to be redone after
+    /// [`Renderer::set_settings`] or any other change.
+    pub fn resolve_into(
+        &mut self,
         gpu: &Gpu,
-        format: wgpu::TextureFormat,
-    ) -> Result<ResolvePass, GpuError> {
-        let mut pass = ResolvePass::new(gpu, format)?;
-        pass.prepare(gpu, &self.settings, &self.targets);
-        Ok(pass)
-    }
-
-    /// Binds `pass` (from [`Renderer::new_resolve_pass`]) to this renderer's
-    /// accumulator and settings again: needed after [`Renderer::set_settings`],
-    /// which may replace the accumulator and changes tone mapping.
-    pub fn prepare_resolve(&self, gpu: &Gpu, pass: &mut ResolvePass) {
-        pass.prepare(gpu, &self.settings, &self.targets);
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::Texture,
+    ) -> Result<(), GpuError> {
+        let size = (target.width(), target.height());
+        if size != (self.targets.width, self.targets.height) {
+            return Err(GpuError::Unsupported(format!(
+                "resolve into a {}x{} texture from a {}x{} image (the sizes must match)",
+                size.0, size.1, self.targets.width, self.targets.height
+            )));
+        }
+        let format = target.format();
+        let index = match self.resolves.iter().position(|p| p.format() == format) {
+            Some(i) => i,
+            None => {
+                let mut pass = ResolvePass::new(gpu, format)?;
+                pass.prepare(gpu, &self.settings, &self.targets);
+                self.resolves.push(pass);
+                self.resolves.len() - 1
+            }
+        };
+        let view = target.create_view(&Default::default());
+        self.resolves[index].encode(encoder, &view);
+        Ok(())
     }
 
     /// The resolved image as sRGB-encoded RGBA8, row-major, top row first.
@@ -677,7 +724,12 @@ impl Renderer {
                 label: Some("capture resolve"),
             });
         let view = self.targets.capture.create_view(&Default::default());
-        self.capture_resolve.encode(&mut encoder, &view, None);
+        let capture = self
+            .resolves
+            .iter()
+            .find(|p| p.format() == targets::CAPTURE_FORMAT)
+            .ok_or_else(|| GpuError::Unsupported("no capture resolve pass".into()))?;
+        capture.encode(&mut encoder, &view);
         gpu.queue.submit([encoder.finish()]);
         let bytes = readback::read_texture(gpu, &self.targets.capture, 4)?;
         gpu.take_errors()?;

@@ -1,6 +1,5 @@
 //! Pass 1: rasterize every instance into the G-buffer, shaded.
 
-use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::Vertex;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::scene_buffers::{Cull, SceneBuffers};
@@ -98,7 +97,7 @@ impl RasterPass {
         scene: &SceneBuffers,
         background: [f32; 3],
         mode: RenderMode,
-        timer: Option<&PassTimer>,
+        timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
     ) {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (color, normal_depth, id, albedo, depth) = (
@@ -154,7 +153,7 @@ impl RasterPass {
                 }),
                 stencil_ops: None,
             }),
-            timestamp_writes: timer.map(|t| t.render_writes("raster")),
+            timestamp_writes,
             occlusion_query_set: None,
             multiview_mask: None,
         });

@@ -12,7 +12,6 @@
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
-use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::{ReprojectUniforms, REPROJECT_WORKGROUP};
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::targets::{GBuffer, Targets, ID_FORMAT, NORMAL_DEPTH_FORMAT};
@@ -215,7 +214,7 @@ impl ReprojectPass {
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
         traced: bool,
-        timer: Option<&PassTimer>,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let Some(hist) = &self.history else {
             return;
@@ -223,7 +222,7 @@ impl ReprojectPass {
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("reproject pass"),
-                timestamp_writes: timer.map(|t| t.compute_writes("reproject")),
+                timestamp_writes,
             });
             pass.set_pipeline(&self.pipeline);
             let groups = self.bind_groups.as_ref();

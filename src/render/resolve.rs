@@ -1,10 +1,12 @@
-//! Pass 4: the accumulator's average, tone mapped, into a colour target
-//! (the window's surface or the capture texture).
+//! Pass 4: the accumulator's average, tone mapped, into a colour target of
+//! one format (a window's view image, the capture texture). The
+//! [`crate::render::Renderer`] owns one per format it is asked for and keeps
+//! each bound to its current accumulator and settings: outside the renderer,
+//! resolve with [`crate::render::Renderer::resolve_into`].
 
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{buffer_entries, read_only_storage_entry, uniform_entry};
-use crate::gpu::timer::PassTimer;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::settings::RenderSettings;
 use crate::render::targets::Targets;
@@ -82,6 +84,11 @@ impl ResolvePass {
         })
     }
 
+    /// The format of the targets this pass draws into.
+    pub fn format(&self) -> wgpu::TextureFormat {
+        self.format
+    }
+
     pub fn prepare(&mut self, gpu: &Gpu, settings: &RenderSettings, targets: &Targets) {
         gpu.queue.write_buffer(
             &self.params,
@@ -96,12 +103,7 @@ impl ResolvePass {
     }
 
     /// Draws the resolved image into `view` (which must be the accumulator's size).
-    pub fn encode(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        view: &wgpu::TextureView,
-        timer: Option<&PassTimer>,
-    ) {
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, view: &wgpu::TextureView) {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("resolve pass"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -114,7 +116,7 @@ impl ResolvePass {
                 },
             })],
             depth_stencil_attachment: None,
-            timestamp_writes: timer.map(|t| t.render_writes("resolve")),
+            timestamp_writes: None,
             occlusion_query_set: None,
             multiview_mask: None,
         });

@@ -12,7 +12,6 @@ use crate::gpu::layout::{
     sampler_entry, storage_texture_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::shader::Traversal;
-use crate::gpu::timer::PassTimer;
 use crate::gpu::twins::TRACE_WORKGROUP;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
@@ -310,14 +309,14 @@ impl TracePass {
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
-        timer: Option<&PassTimer>,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let Some((scene_group, target_group)) = &self.bind_groups else {
             return;
         };
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("trace pass"),
-            timestamp_writes: timer.map(|t| t.compute_writes("trace")),
+            timestamp_writes,
         });
         let pipeline = match (&self.driver_group, &self.driver) {
             (Some(_), Some(v)) => v.pipelines.get(&self.variant),

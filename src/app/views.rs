@@ -1,0 +1,362 @@
+//! The view slots: up to four views, each an image in a texture and, while
+//! the layout shows it, a [`Renderer`] drawing into it. Kept in step with
+//! the panel's model ([`ViewSlots::sync`]), sampled a few samples a frame
+//! until converged, resolved when their sample count changed, saved on
+//! request.
+
+use std::path::{Path, PathBuf};
+
+use super::model::Model;
+use super::screenshot;
+use super::surface::read_rgba8;
+use super::timing::FrameTimer;
+use crate::compare::ViewSpec;
+use crate::gpu::{Gpu, GpuError};
+use crate::render::{RenderSettings, Renderer};
+use crate::scene::Camera;
+
+/// The number of view slots (the most views a layout shows).
+pub(super) const MAX_VIEWS: usize = 4;
+
+/// What a view's renderer was last brought up to date with: a panel edit
+/// changes one of these, and [`ViewSlots::sync`] applies what changed.
+#[derive(Clone, PartialEq)]
+struct ViewInputs {
+    spec: ViewSpec,
+    scene_rev: u64,
+    camera: Camera,
+    settings: RenderSettings,
+}
+
+/// One view slot: the texture the view is resolved into and, while the
+/// layout shows the slot, a renderer drawing into it. The texture is copied
+/// into the window (fast on a CPU driver), or, where the surface cannot be
+/// copied into, drawn by egui under `tex_id` (which never changes).
+struct ViewSlot {
+    tex_id: Option<egui::TextureId>,
+    texture: wgpu::Texture,
+    renderer: Option<Renderer>,
+    inputs: Option<ViewInputs>,
+    /// Samples in the texture (resolved), to skip resolving unchanged images.
+    shown: Option<u32>,
+}
+
+/// The view slots and what they share.
+pub(super) struct ViewSlots {
+    slots: Vec<ViewSlot>,
+    format: wgpu::TextureFormat,
+    /// Pixel size of each shown view, from the last layout.
+    pub sizes: Vec<(u32, u32)>,
+    /// Whether new renderers time their passes (the window has a timer).
+    timed: bool,
+}
+
+fn view_texture(gpu: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> wgpu::Texture {
+    gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("view image"),
+        size: wgpu::Extent3d {
+            width: size.0,
+            height: size.1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}
+
+impl ViewSlots {
+    /// Empty slots with images of `format`; with `egui`, each image is
+    /// registered there to be drawn as an egui image.
+    pub fn new(
+        gpu: &Gpu,
+        format: wgpu::TextureFormat,
+        mut egui: Option<&mut egui_wgpu::Renderer>,
+        timed: bool,
+    ) -> ViewSlots {
+        let slots = (0..MAX_VIEWS)
+            .map(|_| {
+                let texture = view_texture(gpu, (1, 1), format);
+                let tex_id = egui.as_mut().map(|r| {
+                    r.register_native_texture(
+                        &gpu.device,
+                        &texture.create_view(&Default::default()),
+                        wgpu::FilterMode::Nearest,
+                    )
+                });
+                ViewSlot {
+                    tex_id,
+                    texture,
+                    renderer: None,
+                    inputs: None,
+                    shown: None,
+                }
+            })
+            .collect();
+        ViewSlots {
+            slots,
+            format,
+            sizes: Vec::new(),
+            timed,
+        }
+    }
+
+    /// The egui texture of each slot (where egui draws the views).
+    pub fn texture_ids(&self) -> Vec<Option<egui::TextureId>> {
+        self.slots.iter().map(|s| s.tex_id).collect()
+    }
+
+    /// Each slot's image, and whether it shows a view.
+    pub fn images(&self) -> Vec<(&wgpu::Texture, bool)> {
+        self.slots
+            .iter()
+            .map(|s| (&s.texture, s.renderer.is_some()))
+            .collect()
+    }
+
+    /// The renderer of view `i`, while it is shown.
+    pub fn renderer(&self, i: usize) -> Option<&Renderer> {
+        self.slots.get(i).and_then(|s| s.renderer.as_ref())
+    }
+
+    fn renderers(&self) -> impl Iterator<Item = &Renderer> {
+        self.slots.iter().filter_map(|s| s.renderer.as_ref())
+    }
+
+    /// Samples accumulated in each of the first `count` views.
+    pub fn samples(&self, count: usize) -> Vec<u32> {
+        self.slots[..count.min(self.slots.len())]
+            .iter()
+            .map(|s| s.renderer.as_ref().map_or(0, Renderer::samples))
+            .collect()
+    }
+
+    /// Whether any shown view is still converging.
+    pub fn converging(&self) -> bool {
+        self.renderers().any(|r| !r.converged())
+    }
+
+    /// The acceleration structure the first shown view's rays walk, and why
+    /// the driver's is not used, if it is not.
+    pub fn accel_info(&self) -> Option<(&'static str, Option<String>)> {
+        self.renderers()
+            .next()
+            .map(|r| (r.accel_in_use(), r.accel_notice().map(str::to_string)))
+    }
+
+    /// Makes each shown view's renderer match the model (and each image the
+    /// size of its view); drops the renderers of views not shown.
+    pub fn sync(
+        &mut self,
+        gpu: &Gpu,
+        model: &Model,
+        egui: &mut egui_wgpu::Renderer,
+    ) -> Result<(), GpuError> {
+        let count = model.layout.view_count();
+        for i in 0..self.slots.len() {
+            if i >= count {
+                let slot = &mut self.slots[i];
+                slot.renderer = None;
+                slot.inputs = None;
+                slot.shown = None;
+                continue;
+            }
+            let size = self.sizes.get(i).copied().unwrap_or((1, 1));
+            self.resize_image(gpu, i, size, egui);
+            let want = ViewInputs {
+                spec: model.views[i].clone(),
+                scene_rev: model.scene_rev,
+                camera: model.scene.camera.clone(),
+                settings: RenderSettings {
+                    width: size.0,
+                    height: size.1,
+                    ..model.settings.clone()
+                },
+            };
+            self.update_renderer(gpu, i, want, model)?;
+        }
+        Ok(())
+    }
+
+    /// A new image for slot `i` when its view's size changed.
+    fn resize_image(
+        &mut self,
+        gpu: &Gpu,
+        i: usize,
+        size: (u32, u32),
+        egui: &mut egui_wgpu::Renderer,
+    ) {
+        let slot = &mut self.slots[i];
+        if (slot.texture.width(), slot.texture.height()) == size {
+            return;
+        }
+        let texture = view_texture(gpu, size, self.format);
+        if let Some(id) = slot.tex_id {
+            egui.update_egui_texture_from_wgpu_texture(
+                &gpu.device,
+                &texture.create_view(&Default::default()),
+                wgpu::FilterMode::Nearest,
+                id,
+            );
+        }
+        slot.texture = texture;
+        slot.shown = None;
+    }
+
+    /// Brings slot `i`'s renderer up to `want`: in place where only
+    /// settings, scene contents or camera changed, else a new renderer.
+    fn update_renderer(
+        &mut self,
+        gpu: &Gpu,
+        i: usize,
+        want: ViewInputs,
+        model: &Model,
+    ) -> Result<(), GpuError> {
+        let timed = self.timed;
+        let slot = &mut self.slots[i];
+        if slot.inputs.as_ref() == Some(&want) {
+            return Ok(());
+        }
+        match (&mut slot.renderer, &slot.inputs) {
+            (Some(renderer), Some(had)) if had.spec == want.spec => {
+                if had.settings != want.settings {
+                    renderer.set_settings(gpu, want.settings.clone())?;
+                }
+                if had.scene_rev != want.scene_rev {
+                    let mut scene = want.spec.apply(&model.scene);
+                    scene.camera = want.camera.clone();
+                    renderer.update_scene(gpu, scene)?;
+                } else if had.camera != want.camera {
+                    renderer.set_camera(want.camera.clone());
+                }
+            }
+            _ => {
+                slot.renderer = None;
+                let mut renderer =
+                    Renderer::new(gpu, want.spec.apply(&model.scene), want.settings.clone())?;
+                if timed {
+                    renderer.enable_pass_timing(gpu);
+                }
+                slot.renderer = Some(renderer);
+            }
+        }
+        slot.inputs = Some(want);
+        slot.shown = None;
+        Ok(())
+    }
+
+    /// Renders up to `per_view` samples into every shown view that has not
+    /// converged. Returns whether any sample was rendered, and the first
+    /// error (after which that view renders no more this frame).
+    pub fn sample(&mut self, gpu: &Gpu, per_view: u32) -> (bool, Option<GpuError>) {
+        let mut sampled = false;
+        let mut error = None;
+        for renderer in self.slots.iter_mut().filter_map(|s| s.renderer.as_mut()) {
+            for _ in 0..per_view {
+                if renderer.converged() {
+                    break;
+                }
+                if let Err(e) = renderer.render_sample(gpu) {
+                    error = Some(e);
+                    break;
+                }
+                sampled = true;
+            }
+        }
+        (sampled, error)
+    }
+
+    /// Gives each view's newly read-back pass times to `timer`.
+    pub fn collect_pass_times(&mut self, timer: &mut FrameTimer) {
+        for renderer in self.slots.iter_mut().filter_map(|s| s.renderer.as_mut()) {
+            if let Some(times) = renderer.collect_pass_times() {
+                timer.add_view_times(times);
+            }
+        }
+    }
+
+    /// Records the resolve of every view whose sample count changed since
+    /// its image was last resolved.
+    pub fn resolve_changed(
+        &mut self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+    ) -> Result<(), GpuError> {
+        for slot in &mut self.slots {
+            let Some(renderer) = &mut slot.renderer else {
+                continue;
+            };
+            if slot.shown != Some(renderer.samples()) {
+                renderer.resolve_into(gpu, encoder, &slot.texture)?;
+                slot.shown = Some(renderer.samples());
+            }
+        }
+        Ok(())
+    }
+
+    /// New renderers for every shown view, built with the device's current
+    /// shaders; on an error, none (the old ones stay).
+    pub fn rebuilt_renderers(&self, gpu: &Gpu) -> Result<Vec<Option<Renderer>>, GpuError> {
+        self.slots
+            .iter()
+            .map(|slot| {
+                let Some(old) = &slot.renderer else {
+                    return Ok(None);
+                };
+                let mut renderer = Renderer::new(gpu, old.scene().clone(), old.settings().clone())?;
+                if self.timed {
+                    renderer.enable_pass_timing(gpu);
+                }
+                Ok(Some(renderer))
+            })
+            .collect()
+    }
+
+    /// Puts renderers from [`ViewSlots::rebuilt_renderers`] in place.
+    pub fn replace_renderers(&mut self, rebuilt: Vec<Option<Renderer>>) {
+        for (slot, new) in self.slots.iter_mut().zip(rebuilt) {
+            if let Some(renderer) = new {
+                slot.renderer = Some(renderer);
+                slot.shown = None;
+            }
+        }
+    }
+
+    /// Saves each shown view's image (full size, even under a wipe) as a
+    /// new PNG in `dir`, named with `stamp` and the view's label; returns
+    /// the paths written, or the first failure.
+    pub fn save(
+        &mut self,
+        gpu: &Gpu,
+        dir: &Path,
+        stamp: &str,
+        labels: &[String],
+    ) -> Result<Vec<PathBuf>, String> {
+        let mut saved = Vec::new();
+        for (i, slot) in self.slots.iter_mut().enumerate() {
+            let Some(renderer) = &mut slot.renderer else {
+                continue;
+            };
+            let fail = |e: String| format!("cannot save view {}: {e}", i + 1);
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            renderer
+                .resolve_into(gpu, &mut encoder, &slot.texture)
+                .map_err(|e| fail(e.to_string()))?;
+            gpu.queue.submit([encoder.finish()]);
+            let label = labels.get(i).map_or("", String::as_str);
+            let stem = format!("celray-{stamp}-view{}-{}", i + 1, screenshot::slug(label));
+            let (w, h) = (slot.texture.width(), slot.texture.height());
+            let rgba =
+                read_rgba8(gpu, &slot.texture, self.format).map_err(|e| fail(e.to_string()))?;
+            let path = screenshot::save_new_png(dir, &stem, w, h, &rgba)
+                .map_err(|e| fail(e.to_string()))?;
+            saved.push(path);
+        }
+        Ok(saved)
+    }
+}
