@@ -33,8 +33,39 @@ pub(super) fn views_ui(
     // Camera gestures: only drags that start on the views and wheel turns
     // over them; a drag that starts on the panel or the wipe line is egui's.
     let response = ui.interact(area, Id::unique("celray views"), Sense::click_and_drag());
-    let full_uv = Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0));
     let painter = ui.painter_at(area);
+    draw_images(&painter, model, &rects, textures);
+    draw_labels(&painter, model, &rects, samples);
+    if model.layout == Layout::Wipe {
+        wipe_line(ui, &painter, area, model);
+    }
+    camera_gestures(
+        ui,
+        &response,
+        model,
+        rects.first().map_or(1.0, |r| r.height()),
+    );
+    // A click (not a drag) on a view: the caller focuses the lens there.
+    let click = response
+        .clicked()
+        .then(|| response.interact_pointer_pos())
+        .flatten()
+        .and_then(|pos| {
+            let i = rects.iter().position(|r| r.contains(pos))?;
+            let uv = (pos - rects[i].min) / rects[i].size();
+            Some((i, glam::Vec2::new(uv.x, uv.y)))
+        });
+    ViewArea { rects, click }
+}
+
+/// The views' images, where egui draws them (`textures[i]` is view i's).
+fn draw_images(
+    painter: &egui::Painter,
+    model: &Model,
+    rects: &[Rect],
+    textures: &[Option<egui::TextureId>],
+) {
+    let full_uv = Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0));
     if model.layout == Layout::Wipe {
         let parts = layout::wipe_parts(rects[0], model.wipe);
         for (i, (rect, uv)) in parts.iter().enumerate() {
@@ -49,6 +80,10 @@ pub(super) fn views_ui(
             }
         }
     }
+}
+
+/// Each view's label: its name, samples and settings, on a dark box.
+fn draw_labels(painter: &egui::Painter, model: &Model, rects: &[Rect], samples: &[u32]) {
     let settings = settings_label(&model.settings);
     for (i, rect) in rects.iter().enumerate() {
         let text = format!(
@@ -80,42 +115,27 @@ pub(super) fn views_ui(
             Color32::WHITE,
         );
     }
-    if model.layout == Layout::Wipe {
-        let x = area.min.x + area.width() * model.wipe;
-        let handle = Rect::from_center_size(
-            Pos2::new(x, area.center().y),
-            egui::vec2(14.0, area.height()),
-        );
-        let wipe = ui
-            .interact(handle, Id::unique("celray wipe line"), Sense::drag())
-            .on_hover_cursor(egui::CursorIcon::ResizeHorizontal);
-        if wipe.dragged() {
-            model.wipe = (model.wipe + wipe.drag_delta().x / area.width().max(1.0)).clamp(0.0, 1.0);
-        }
-        let x = area.min.x + area.width() * model.wipe;
-        painter.line_segment(
-            [Pos2::new(x, area.min.y), Pos2::new(x, area.max.y)],
-            Stroke::new(2.0, Color32::WHITE),
-        );
-        painter.circle_filled(Pos2::new(x, area.center().y), 7.0, Color32::WHITE);
-    }
-    camera_gestures(
-        ui,
-        &response,
-        model,
-        rects.first().map_or(1.0, |r| r.height()),
+}
+
+/// The wipe line: dragged to move the split between the two views.
+fn wipe_line(ui: &mut egui::Ui, painter: &egui::Painter, area: Rect, model: &mut Model) {
+    let x = area.min.x + area.width() * model.wipe;
+    let handle = Rect::from_center_size(
+        Pos2::new(x, area.center().y),
+        egui::vec2(14.0, area.height()),
     );
-    // A click (not a drag) on a view: the caller focuses the lens there.
-    let click = response
-        .clicked()
-        .then(|| response.interact_pointer_pos())
-        .flatten()
-        .and_then(|pos| {
-            let i = rects.iter().position(|r| r.contains(pos))?;
-            let uv = (pos - rects[i].min) / rects[i].size();
-            Some((i, glam::Vec2::new(uv.x, uv.y)))
-        });
-    ViewArea { rects, click }
+    let wipe = ui
+        .interact(handle, Id::unique("celray wipe line"), Sense::drag())
+        .on_hover_cursor(egui::CursorIcon::ResizeHorizontal);
+    if wipe.dragged() {
+        model.wipe = (model.wipe + wipe.drag_delta().x / area.width().max(1.0)).clamp(0.0, 1.0);
+    }
+    let x = area.min.x + area.width() * model.wipe;
+    painter.line_segment(
+        [Pos2::new(x, area.min.y), Pos2::new(x, area.max.y)],
+        Stroke::new(2.0, Color32::WHITE),
+    );
+    painter.circle_filled(Pos2::new(x, area.center().y), 7.0, Color32::WHITE);
 }
 
 fn camera_gestures(ui: &egui::Ui, response: &egui::Response, model: &mut Model, view_h: f32) {
