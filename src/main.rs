@@ -796,9 +796,10 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
         if let Some(t) = app::timing::mean_pass_times(&report.pass_times) {
             println!(
                 "GPU per frame (mean of {} timed frames, all views): raster {:.2} ms, \
-                 outline+accumulate {:.2} ms, resolve {:.2} ms, egui {:.2} ms",
+                 trace {:.2} ms, outline+accumulate {:.2} ms, resolve {:.2} ms, egui {:.2} ms",
                 report.pass_times.len(),
                 t.raster_ms,
+                t.trace_ms,
                 t.accumulate_ms,
                 t.resolve_ms,
                 t.egui_ms

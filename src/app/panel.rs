@@ -172,8 +172,8 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
         (Some(t), _) => {
             ui.label(
                 RichText::new(format!(
-                    "GPU: raster {:.2}  outline+accum {:.2}  resolve {:.2}  egui {:.2} ms",
-                    t.raster_ms, t.accumulate_ms, t.resolve_ms, t.egui_ms
+                    "GPU: raster {:.2}  trace {:.2}  outline+accum {:.2}  resolve {:.2}  egui {:.2} ms",
+                    t.raster_ms, t.trace_ms, t.accumulate_ms, t.resolve_ms, t.egui_ms
                 ))
                 .small(),
             );

@@ -12,7 +12,9 @@ use crate::gpu::Gpu;
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PassTimes {
     pub raster_ms: f64,
-    /// The trace, accumulate (with outlines) and reproject passes.
+    /// The trace pass (zero in raster mode).
+    pub trace_ms: f64,
+    /// The accumulate (with outlines) and reproject passes.
     pub accumulate_ms: f64,
     pub resolve_ms: f64,
     pub egui_ms: f64,
@@ -87,7 +89,8 @@ impl FrameTimer {
         for (name, ms) in times {
             match *name {
                 "raster" => self.views.raster_ms += ms,
-                "trace" | "accumulate" | "reproject" => self.views.accumulate_ms += ms,
+                "trace" => self.views.trace_ms += ms,
+                "accumulate" | "reproject" => self.views.accumulate_ms += ms,
                 other => log::warn!("window timing: a renderer pass {other:?} not counted"),
             }
         }
@@ -170,6 +173,7 @@ pub fn mean_pass_times(times: &[PassTimes]) -> Option<PassTimes> {
     let mean = |f: fn(&PassTimes) -> f64| sampled.iter().map(|t| f(t)).sum::<f64>() / n;
     Some(PassTimes {
         raster_ms: mean(|t| t.raster_ms),
+        trace_ms: mean(|t| t.trace_ms),
         accumulate_ms: mean(|t| t.accumulate_ms),
         resolve_ms: mean(|t| t.resolve_ms),
         egui_ms: mean(|t| t.egui_ms),
