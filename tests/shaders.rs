@@ -480,9 +480,7 @@ fn wgsl_has_no_literal_copy_of_a_limit() {
     }
     for name in &names {
         assert_eq!(
-            limits_header()
-                .matches(&format!("const {name}:"))
-                .count(),
+            limits_header().matches(&format!("const {name}:")).count(),
             1,
             "{name} in the generated header"
         );
@@ -513,7 +511,10 @@ fn rust_groups(file: &str) -> Vec<(u32, &'static [wgpu::BindGroupLayoutEntry])> 
 /// kind of non-comparison sampler it is, so neither side does).
 fn wgsl_binding_kind(module: &naga::Module, var: &naga::GlobalVariable) -> String {
     use naga::{AddressSpace, ImageClass, StorageAccess, TypeInner};
-    let access = |a: StorageAccess| match (a.contains(StorageAccess::LOAD), a.contains(StorageAccess::STORE)) {
+    let access = |a: StorageAccess| match (
+        a.contains(StorageAccess::LOAD),
+        a.contains(StorageAccess::STORE),
+    ) {
         (true, false) => "read",
         (false, true) => "write",
         _ => "read_write",
@@ -532,7 +533,9 @@ fn wgsl_binding_kind(module: &naga::Module, var: &naga::GlobalVariable) -> Strin
                     ImageClass::Sampled { kind, multi } => {
                         format!("texture {kind:?} {dim} multisampled={multi}")
                     }
-                    ImageClass::Depth { multi } => format!("texture Depth {dim} multisampled={multi}"),
+                    ImageClass::Depth { multi } => {
+                        format!("texture Depth {dim} multisampled={multi}")
+                    }
                     ImageClass::Storage { format, access: a } => {
                         format!("storage texture {format:?} {dim} {}", access(*a))
                     }
@@ -580,7 +583,10 @@ fn rust_binding_kind(entry: &wgpu::BindGroupLayoutEntry) -> String {
                 TextureSampleType::Sint => "Sint",
                 TextureSampleType::Depth => "Depth",
             };
-            format!("texture {kind} {} multisampled={multisampled}", dim(view_dimension))
+            format!(
+                "texture {kind} {} multisampled={multisampled}",
+                dim(view_dimension)
+            )
         }
         BindingType::StorageTexture {
             access,
@@ -592,7 +598,10 @@ fn rust_binding_kind(entry: &wgpu::BindGroupLayoutEntry) -> String {
                 StorageTextureAccess::WriteOnly => "write",
                 _ => "read_write",
             };
-            format!("storage texture {format:?} {} {access}", dim(view_dimension))
+            format!(
+                "storage texture {format:?} {} {access}",
+                dim(view_dimension)
+            )
         }
         BindingType::Sampler(s) => format!(
             "sampler comparison={}",
@@ -635,7 +644,10 @@ fn check_bindings(
     for (handle, var) in module.global_variables.iter() {
         let Some(rb) = &var.binding else { continue };
         let name = var.name.as_deref().unwrap_or("?");
-        let at = format!("{label}: {name} (@group({}) @binding({}))", rb.group, rb.binding);
+        let at = format!(
+            "{label}: {name} (@group({}) @binding({}))",
+            rb.group, rb.binding
+        );
         let entries = groups
             .iter()
             .find(|(g, _)| *g == rb.group)
@@ -701,7 +713,12 @@ fn bindings_match_rust_layouts() {
 fn scene_group_is_declared_once() {
     use celray::gpu::shader::SHADER_FILES;
     for (file, text) in SHADER_FILES {
-        let scene_users = ["raster.wgsl", "trace.wgsl", "ray_batch.wgsl", "accumulate.wgsl"];
+        let scene_users = [
+            "raster.wgsl",
+            "trace.wgsl",
+            "ray_batch.wgsl",
+            "accumulate.wgsl",
+        ];
         if *file == "lib/scene_bindings.wgsl" {
             continue;
         }

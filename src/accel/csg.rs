@@ -16,11 +16,11 @@
 use glam::{Mat4, Vec3};
 
 use super::bvh::Aabb;
-use super::{intersect, AccelError, TraceResult};
 use super::layout::{
     BvhNode, GpuCsgLeaf, GpuCsgOp, GpuTriangle, CSG_NO_MATERIAL, CSG_OP_DIFFERENCE, CSG_OP_END,
     CSG_OP_INTERSECTION, CSG_OP_LEAF, CSG_OP_UNION, MAX_TRAVERSAL_STEPS, SHAPE_MESH,
 };
+use super::{intersect, AccelError, TraceResult};
 use crate::scene::{Csg, CsgNode, Mesh, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK};
 
 /// Leaves are intersected over (-CSG_FAR, CSG_FAR): the whole line.

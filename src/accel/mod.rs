@@ -12,13 +12,13 @@ pub mod layout;
 
 use glam::{Mat4, Vec3};
 
+use crate::scene::{Mesh, PlaneKind, Scene, Shape};
+use bvh::Aabb;
 use layout::{
     BvhNode, GpuCsgLeaf, GpuCsgOp, GpuShape, GpuTriangle, CSG_NO_MATERIAL, MAX_TRAVERSAL_STEPS,
     SHAPE_BOX, SHAPE_CONE, SHAPE_CSG, SHAPE_CYLINDER, SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD,
     SHAPE_SPHERE, TRAVERSAL_STACK,
 };
-use crate::scene::{Mesh, PlaneKind, Scene, Shape};
-use bvh::Aabb;
 
 /// Triangles per bottom-level leaf and instances per top-level leaf.
 const MESH_LEAF: usize = 4;

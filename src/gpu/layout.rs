@@ -4,7 +4,10 @@
 //! against the WGSL declarations (binding numbers and types).
 
 /// A uniform buffer visible to `visibility`.
-pub const fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+pub const fn uniform_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     buffer_entry(binding, visibility, wgpu::BufferBindingType::Uniform)
 }
 
@@ -81,7 +84,10 @@ pub const fn storage_texture_entry(
 }
 
 /// The base-colour texture array (filterable, sampled).
-pub const fn map_array_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+pub const fn map_array_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,
@@ -95,7 +101,10 @@ pub const fn map_array_entry(binding: u32, visibility: wgpu::ShaderStages) -> wg
 }
 
 /// A filtering sampler.
-pub const fn sampler_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+pub const fn sampler_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,

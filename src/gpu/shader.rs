@@ -33,7 +33,10 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("CSG_MESH_MAX_CROSSINGS", CSG_MESH_MAX_CROSSINGS),
         ("CSG_ENDPOINTS", 2 * CSG_MAX_INTERVALS),
         ("CSG_SLOTS", CSG_STACK + 1),
-        ("CSG_STORE_ENDPOINTS", (CSG_STACK + 1) * 2 * CSG_MAX_INTERVALS),
+        (
+            "CSG_STORE_ENDPOINTS",
+            (CSG_STACK + 1) * 2 * CSG_MAX_INTERVALS,
+        ),
         ("MAX_TOON_BANDS", crate::scene::MAX_TOON_BANDS),
         ("MAX_OUTLINE_RADIUS", twins::MAX_OUTLINE_RADIUS),
         (

@@ -15,11 +15,11 @@ const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterab
 /// Group 1 of the accumulate pass, binding by binding as
 /// `shaders/accumulate.wgsl` declares it.
 pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 5] = [
-    uniform_entry(0, wgpu::ShaderStages::COMPUTE),   // frame
-    texture_entry(1, FLOAT),                         // color_tex
-    texture_entry(2, FLOAT),                         // normal_depth_tex
+    uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
+    texture_entry(1, FLOAT),                       // color_tex
+    texture_entry(2, FLOAT),                       // normal_depth_tex
     texture_entry(3, wgpu::TextureSampleType::Uint), // id_tex
-    read_write_storage_entry(4),                     // accum
+    read_write_storage_entry(4),                   // accum
 ];
 
 pub struct AccumulatePass {

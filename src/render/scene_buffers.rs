@@ -13,11 +13,11 @@ use glam::Mat4;
 use wgpu::util::DeviceExt;
 
 use crate::accel::SceneAccel;
+use crate::gpu::layout::{buffer_entries, map_array_entry, read_only_storage_entry, sampler_entry};
 use crate::gpu::twins::{
     GpuInstance, GpuLight, GpuMaterial, Vertex, MAX_TOON_BANDS, NO_TEXTURE, SHADING_BLINN_PHONG,
     SHADING_TOON,
 };
-use crate::gpu::layout::{buffer_entries, map_array_entry, read_only_storage_entry, sampler_entry};
 use crate::gpu::{Gpu, GpuError};
 use crate::render::textures::{scene_uses_textures, SceneTextures};
 use crate::scene::{
@@ -480,44 +480,44 @@ impl SceneBuffers {
                 entries: &entries,
             });
             SceneBuffers {
-            bind_group,
-            shapes,
-            nodes,
-            triangles,
-            tlas_items,
-            world_bounds: scene.bounds(),
-            has_motion: scene
-                .instances
-                .iter()
-                .any(|i| i.world_from_object_end.is_some()),
-            csg_ops,
-            csg_leaves,
-            triangle_maps,
-            accel,
-            vertices: gpu
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("scene vertices"),
-                    contents: bytemuck::cast_slice(&vertices),
-                    usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
-                }),
-            indices: gpu
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("scene indices"),
-                    contents: bytemuck::cast_slice(&indices),
-                    usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
-                }),
-            instances,
-            materials,
-            lights,
-            light_count,
-            textures,
-            uses_textures: scene_uses_textures(scene),
-            draws,
-            instance_order: order,
-            triangle_count,
-        }
+                bind_group,
+                shapes,
+                nodes,
+                triangles,
+                tlas_items,
+                world_bounds: scene.bounds(),
+                has_motion: scene
+                    .instances
+                    .iter()
+                    .any(|i| i.world_from_object_end.is_some()),
+                csg_ops,
+                csg_leaves,
+                triangle_maps,
+                accel,
+                vertices: gpu
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("scene vertices"),
+                        contents: bytemuck::cast_slice(&vertices),
+                        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+                    }),
+                indices: gpu
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("scene indices"),
+                        contents: bytemuck::cast_slice(&indices),
+                        usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+                    }),
+                instances,
+                materials,
+                lights,
+                light_count,
+                textures,
+                uses_textures: scene_uses_textures(scene),
+                draws,
+                instance_order: order,
+                triangle_count,
+            }
         })
     }
 }

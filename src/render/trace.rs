@@ -258,10 +258,15 @@ impl TracePass {
                 resource: self.stats.as_entire_binding(),
             },
         ];
-        entries.extend(views.iter().zip(2..).map(|(v, binding)| wgpu::BindGroupEntry {
-            binding,
-            resource: wgpu::BindingResource::TextureView(v),
-        }));
+        entries.extend(
+            views
+                .iter()
+                .zip(2..)
+                .map(|(v, binding)| wgpu::BindGroupEntry {
+                    binding,
+                    resource: wgpu::BindingResource::TextureView(v),
+                }),
+        );
         let target_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace pass bind group"),
             layout: &self.target_layout,
