@@ -10,7 +10,8 @@
 // Fixed storage: CSG_STACK entries of 2 * CSG_MAX_INTERVALS endpoints, plus
 // one scratch entry, 12 bytes an endpoint (t, packed normal, material and
 // flip bit): ~1 KB per invocation (on CPU drivers a private array costs in
-// proportion to its size, zeroed where it is declared). Trees that could need more are refused at load (see
+// proportion to its size, zeroed where it is declared). Trees that could
+// need more are refused at load (see
 // src/scene/csg.rs); a mesh leaf crossed more than CSG_MESH_MAX_CROSSINGS
 // times, or a list that overflows anyway, sets `overflowed` (a magenta
 // pixel and a count), never a silent wrong answer. Every instruction and
