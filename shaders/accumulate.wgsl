@@ -3,20 +3,19 @@
 // accum[p].w counts the samples, so resolve divides by it.
 
 #include "lib/types.wgsl"
+#include "lib/scene_bindings.wgsl"
 
-@group(0) @binding(0) var<uniform> frame: FrameUniforms;
-@group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
-@group(0) @binding(2) var<storage, read> materials: array<GpuMaterial>;
-@group(0) @binding(3) var color_tex: texture_2d<f32>;
-@group(0) @binding(4) var normal_depth_tex: texture_2d<f32>;
-@group(0) @binding(5) var id_tex: texture_2d<u32>;
-@group(0) @binding(6) var<storage, read_write> accum: array<vec4<f32>>;
+// Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
+@group(1) @binding(0) var<uniform> frame: FrameUniforms;
+@group(1) @binding(1) var color_tex: texture_2d<f32>;
+@group(1) @binding(2) var normal_depth_tex: texture_2d<f32>;
+@group(1) @binding(3) var id_tex: texture_2d<u32>;
+@group(1) @binding(4) var<storage, read_write> accum: array<vec4<f32>>;
 
-const ACCUMULATE_WORKGROUP: u32 = 16u;
-// Outlines wider than this many pixels are drawn this wide.
-const MAX_OUTLINE_RADIUS: i32 = 8;
-// Workgroup tile with its halo: (16 + 2 * 8)^2 texels at most.
-const TILE_TEXELS: u32 = 1024u;
+// From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP;
+// MAX_OUTLINE_RADIUS (outlines wider than this many pixels are drawn this
+// wide); TILE_TEXELS, the workgroup tile with its halo,
+// (ACCUMULATE_WORKGROUP + 2 * MAX_OUTLINE_RADIUS)^2 texels at most.
 // q is in front of p when its view depth is smaller by this fraction.
 const DEPTH_JUMP: f32 = 0.05;
 // Normals more than 60 degrees apart make a crease.

@@ -2,18 +2,13 @@
 // in the fragment shader into the G-buffer (colour, normal + depth, id).
 
 #include "lib/types.wgsl"
+#include "lib/scene_bindings.wgsl"
 #include "lib/shading.wgsl"
 #include "lib/intersect.wgsl"
 #include "lib/texture.wgsl"
 
-@group(0) @binding(0) var<uniform> frame: FrameUniforms;
-@group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
-@group(0) @binding(2) var<storage, read> materials: array<GpuMaterial>;
-@group(0) @binding(3) var<storage, read> lights: array<GpuLight>;
-@group(0) @binding(4) var<storage, read> shapes: array<GpuShape>;
-@group(0) @binding(5) var base_color_maps: texture_2d_array<f32>;
-@group(0) @binding(6) var map_linear: sampler;
-@group(0) @binding(7) var map_nearest: sampler;
+// Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
+@group(1) @binding(0) var<uniform> frame: FrameUniforms;
 
 struct VsOut {
     @builtin(position) clip: vec4<f32>,

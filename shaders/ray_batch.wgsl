@@ -4,21 +4,16 @@
 // CPU reference uses.
 
 #include "lib/types.wgsl"
+#include "lib/scene_bindings.wgsl"
 #include "lib/intersect.wgsl"
 #include "lib/traverse.wgsl"
 #include "lib/csg.wgsl"
 
-@group(0) @binding(0) var<storage, read> instances: array<GpuInstance>;
-@group(0) @binding(1) var<storage, read> shapes: array<GpuShape>;
-@group(0) @binding(2) var<storage, read> nodes: array<BvhNode>;
-@group(0) @binding(3) var<storage, read> triangles: array<GpuTriangle>;
-@group(0) @binding(4) var<storage, read> tlas_items: array<u32>;
-@group(0) @binding(5) var<storage, read> rays: array<GpuRay>;
-@group(0) @binding(6) var<storage, read_write> hits: array<GpuHit>;
-@group(0) @binding(7) var<storage, read> csg_ops: array<GpuCsgOp>;
-@group(0) @binding(8) var<storage, read> csg_leaves: array<GpuCsgLeaf>;
+// Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
+@group(1) @binding(0) var<storage, read> rays: array<GpuRay>;
+@group(1) @binding(1) var<storage, read_write> hits: array<GpuHit>;
 
-const RAY_BATCH_WORKGROUP: u32 = 64u;
+// RAY_BATCH_WORKGROUP: lib/limits.wgsl (generated).
 
 @compute @workgroup_size(RAY_BATCH_WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {

@@ -37,7 +37,7 @@ struct ReprojectUniforms {
 
 const TEMPORAL_REJECT_NONE: u32 = 0u;
 const TEMPORAL_REJECT_CLIP: u32 = 1u;
-const REPROJECT_WORKGROUP: u32 = 8u;
+// REPROJECT_WORKGROUP: lib/limits.wgsl (generated).
 // An outline pixel takes the motion of an object at most this far away.
 const MAX_DILATION: i32 = 2;
 // Smallest half-width of the clipping box (a flat neighbourhood).

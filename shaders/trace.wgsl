@@ -5,6 +5,7 @@
 // functions as the raster pass. Writes the G-buffer the accumulate pass reads.
 
 #include "lib/types.wgsl"
+#include "lib/scene_bindings.wgsl"
 #include "lib/shading.wgsl"
 #include "lib/intersect.wgsl"
 #include "lib/traverse.wgsl"
@@ -12,38 +13,22 @@
 #include "lib/random.wgsl"
 #include "lib/texture.wgsl"
 
-@group(0) @binding(0) var<uniform> frame: FrameUniforms;
-@group(0) @binding(1) var<storage, read> instances: array<GpuInstance>;
-@group(0) @binding(2) var<storage, read> materials: array<GpuMaterial>;
-@group(0) @binding(3) var<storage, read> lights: array<GpuLight>;
-@group(0) @binding(4) var<storage, read> shapes: array<GpuShape>;
-@group(0) @binding(5) var<storage, read> nodes: array<BvhNode>;
-@group(0) @binding(6) var<storage, read> triangles: array<GpuTriangle>;
-@group(0) @binding(7) var<storage, read> tlas_items: array<u32>;
+// Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
+@group(1) @binding(0) var<uniform> frame: FrameUniforms;
 // [0]: pixels whose traversal ran out of its step budget.
-@group(0) @binding(8) var<storage, read_write> stats: array<atomic<u32>>;
-@group(0) @binding(9) var<storage, read> csg_ops: array<GpuCsgOp>;
-@group(0) @binding(10) var<storage, read> csg_leaves: array<GpuCsgLeaf>;
-@group(0) @binding(11) var base_color_maps: texture_2d_array<f32>;
-@group(0) @binding(12) var map_linear: sampler;
-@group(0) @binding(13) var map_nearest: sampler;
-// Per mesh triangle: its mesh's own base-colour map word (layer and glTF
-// sampler bits, see lib/types.wgsl), or NO_TEXTURE.
-@group(0) @binding(14) var<storage, read> triangle_maps: array<u32>;
-@group(1) @binding(0) var raster_normal_depth: texture_2d<f32>;
-@group(1) @binding(1) var raster_id: texture_2d<u32>;
-@group(1) @binding(2) var out_color: texture_storage_2d<rgba16float, write>;
-@group(1) @binding(3) var out_normal_depth: texture_storage_2d<rgba32float, write>;
-@group(1) @binding(4) var out_id: texture_storage_2d<r32uint, write>;
+@group(1) @binding(1) var<storage, read_write> stats: array<atomic<u32>>;
+@group(1) @binding(2) var raster_normal_depth: texture_2d<f32>;
+@group(1) @binding(3) var raster_id: texture_2d<u32>;
+@group(1) @binding(4) var out_color: texture_storage_2d<rgba16float, write>;
+@group(1) @binding(5) var out_normal_depth: texture_storage_2d<rgba32float, write>;
+@group(1) @binding(6) var out_id: texture_storage_2d<r32uint, write>;
 // The raster pass's base colour (hybrid: rasterized hits).
-@group(1) @binding(5) var raster_albedo: texture_2d<f32>;
+@group(1) @binding(7) var raster_albedo: texture_2d<f32>;
 
-const TRACE_WORKGROUP: u32 = 8u;
-// Loop iterations one pixel may spend on traversal, all rays together:
-// well under lavapipe's silent cut at ~65,535.
-const MAX_INVOCATION_STEPS: u32 = 48000u;
-// The far-plane depth written where no surface is hit.
-const FAR_DEPTH: f32 = 65504.0;
+// TRACE_WORKGROUP, MAX_INVOCATION_STEPS (loop iterations one pixel may
+// spend on traversal, all rays together: well under lavapipe's silent cut
+// at ~65,535) and FAR_DEPTH (the view depth written where no surface is
+// hit) come from the generated lib/limits.wgsl.
 
 // What the scene and settings can reach, fixed per pipeline so that code no
 // pixel can need is not in the kernel at all (the CPU driver pays for code

@@ -1,5 +1,8 @@
-//! CPU-only shader checks: every composed pass validates with naga, and every
-//! Rust twin matches its WGSL struct in size, field offsets and constants.
+//! CPU-only shader checks: every composed pass validates with naga; every
+//! Rust twin matches its WGSL struct in size, field offsets and constants;
+//! every pass's bindings (group, number, type) match the Rust bind-group
+//! layouts; and the limits WGSL shares with Rust come only from the header
+//! generated from Rust (`gpu::shader::limits_header`), never a literal copy.
 
 use std::mem::{offset_of, size_of};
 
@@ -368,6 +371,368 @@ fn map_word_constants_match() {
             ("MAP_NO_MIPS", MAP_NO_MIPS),
         ] {
             assert_eq!(wgsl_u32_constant(&module, name), value, "{file}: {name}");
+        }
+    }
+}
+
+fn wgsl_f32_constant(module: &naga::Module, name: &str) -> f32 {
+    for (_, c) in module.constants.iter() {
+        if c.name.as_deref() == Some(name) {
+            match module.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::F32(v)) => return v,
+                ref other => panic!("{name} is not an f32 literal: {other:?}"),
+            }
+        }
+    }
+    panic!("constant {name} not found");
+}
+
+/// The f32 constants shared with Rust (CSG epsilons, far values) read back
+/// bit for bit, as the u32 ones are.
+#[test]
+fn f32_constants_match() {
+    use celray::accel::csg::{CSG_EPS_ABS, CSG_EPS_REL, CSG_FAR};
+    for file in ["trace.wgsl", "ray_batch.wgsl"] {
+        let module = parse(file);
+        for (name, value) in [
+            ("CSG_FAR", CSG_FAR),
+            ("CSG_EPS_ABS", CSG_EPS_ABS),
+            ("CSG_EPS_REL", CSG_EPS_REL),
+            ("FAR_DEPTH", FAR_DEPTH),
+        ] {
+            let wgsl = wgsl_f32_constant(&module, name);
+            assert_eq!(wgsl.to_bits(), value.to_bits(), "{file}: {name}");
+        }
+    }
+}
+
+/// Every limit of the generated header reads back from WGSL with its Rust
+/// value, in every pass that includes it; the header's list names the twin
+/// constants themselves.
+#[test]
+fn generated_limits_match_rust() {
+    use celray::gpu::shader::{f32_limits, u32_limits};
+    let listed = u32_limits();
+    let expect = |name: &str| listed.iter().find(|(n, _)| *n == name).unwrap().1;
+    for (name, value) in [
+        ("TRAVERSAL_STACK", TRAVERSAL_STACK),
+        ("MAX_TRAVERSAL_STEPS", MAX_TRAVERSAL_STEPS),
+        ("MAX_INVOCATION_STEPS", MAX_INVOCATION_STEPS),
+        ("CSG_MAX_INTERVALS", celray::scene::CSG_MAX_INTERVALS),
+        ("CSG_STACK", celray::scene::CSG_STACK),
+        (
+            "CSG_MESH_MAX_CROSSINGS",
+            celray::scene::CSG_MESH_MAX_CROSSINGS,
+        ),
+        ("MAX_TOON_BANDS", celray::scene::MAX_TOON_BANDS),
+        ("MAX_OUTLINE_RADIUS", MAX_OUTLINE_RADIUS),
+        ("TRACE_WORKGROUP", TRACE_WORKGROUP),
+        ("RAY_BATCH_WORKGROUP", RAY_BATCH_WORKGROUP),
+        ("ACCUMULATE_WORKGROUP", ACCUMULATE_WORKGROUP),
+        ("REPROJECT_WORKGROUP", REPROJECT_WORKGROUP),
+    ] {
+        assert_eq!(expect(name), value, "{name}");
+    }
+    // The accumulate tile holds the workgroup and its outline halo.
+    let tile = ACCUMULATE_WORKGROUP + 2 * MAX_OUTLINE_RADIUS;
+    assert_eq!(expect("TILE_TEXELS"), tile * tile);
+    for file in pass_files().filter(|f| *f != "bench_floor.wgsl") {
+        let module = parse(file);
+        for (name, value) in &listed {
+            assert_eq!(wgsl_u32_constant(&module, name), *value, "{file}: {name}");
+        }
+        for (name, value) in f32_limits() {
+            let wgsl = wgsl_f32_constant(&module, name);
+            assert_eq!(wgsl.to_bits(), value.to_bits(), "{file}: {name}");
+        }
+    }
+}
+
+/// No shader file declares a limit of the generated header itself, nor
+/// writes the big ones as literals: the header is their only WGSL source.
+#[test]
+fn wgsl_has_no_literal_copy_of_a_limit() {
+    use celray::gpu::shader::{f32_limits, limits_header, u32_limits, SHADER_FILES};
+    let names: Vec<&str> = u32_limits()
+        .iter()
+        .map(|(n, _)| *n)
+        .chain(f32_limits().iter().map(|(n, _)| *n))
+        .collect();
+    for (file, text) in SHADER_FILES {
+        for line in text.lines() {
+            let code = line.split("//").next().unwrap_or("");
+            for name in &names {
+                for keyword in ["const", "override", "let", "var"] {
+                    assert!(
+                        !code.contains(&format!("{keyword} {name}:"))
+                            && !code.contains(&format!("{keyword} {name} ")),
+                        "{file} declares {name}, which comes from the generated header: {line}"
+                    );
+                }
+            }
+            for literal in ["65504", "48000", "12000", "1e30", "1.0e30"] {
+                assert!(
+                    !code.contains(literal),
+                    "{file} writes the limit {literal} as a literal: {line}"
+                );
+            }
+        }
+    }
+    for name in &names {
+        assert_eq!(
+            limits_header().matches(&format!("const {name}:")).count(),
+            1,
+            "{name} in the generated header"
+        );
+    }
+}
+
+/// The bind-group layouts Rust builds for pass `file`, by group.
+fn rust_groups(file: &str) -> Vec<(u32, &'static [wgpu::BindGroupLayoutEntry])> {
+    use celray::render::scene_buffers::{PASS_GROUP, SCENE_GROUP, SCENE_LAYOUT};
+    use celray::render::{accumulate, raster, ray_batch, reproject, resolve, trace};
+    let scene_and = |own: &'static [wgpu::BindGroupLayoutEntry]| {
+        vec![(SCENE_GROUP, &SCENE_LAYOUT[..]), (PASS_GROUP, own)]
+    };
+    match file {
+        "raster.wgsl" => scene_and(&raster::PASS_LAYOUT),
+        "trace.wgsl" => scene_and(&trace::PASS_LAYOUT),
+        "ray_batch.wgsl" => scene_and(&ray_batch::PASS_LAYOUT),
+        "accumulate.wgsl" => scene_and(&accumulate::PASS_LAYOUT),
+        "resolve.wgsl" => vec![(0, &resolve::PASS_LAYOUT[..])],
+        "reproject.wgsl" => vec![(0, &reproject::PASS_LAYOUT[..])],
+        "bench_floor.wgsl" => vec![(0, &celray::gpu::layout::BENCH_FLOOR_LAYOUT[..])],
+        other => panic!("{other}: a pass with no Rust layout listed in tests/shaders.rs"),
+    }
+}
+
+/// A binding's kind, said the same way for a WGSL global and a Rust layout
+/// entry (WGSL cannot say whether a float texture is filterable or which
+/// kind of non-comparison sampler it is, so neither side does).
+fn wgsl_binding_kind(module: &naga::Module, var: &naga::GlobalVariable) -> String {
+    use naga::{AddressSpace, ImageClass, StorageAccess, TypeInner};
+    let access = |a: StorageAccess| match (
+        a.contains(StorageAccess::LOAD),
+        a.contains(StorageAccess::STORE),
+    ) {
+        (true, false) => "read",
+        (false, true) => "write",
+        _ => "read_write",
+    };
+    match var.space {
+        AddressSpace::Uniform => "uniform buffer".into(),
+        AddressSpace::Storage { access: a } => format!("storage buffer, {}", access(a)),
+        AddressSpace::Handle => match &module.types[var.ty].inner {
+            TypeInner::Image {
+                dim,
+                arrayed,
+                class,
+            } => {
+                let dim = format!("{dim:?}{}", if *arrayed { " array" } else { "" });
+                match class {
+                    ImageClass::Sampled { kind, multi } => {
+                        format!("texture {kind:?} {dim} multisampled={multi}")
+                    }
+                    ImageClass::Depth { multi } => {
+                        format!("texture Depth {dim} multisampled={multi}")
+                    }
+                    ImageClass::Storage { format, access: a } => {
+                        format!("storage texture {format:?} {dim} {}", access(*a))
+                    }
+                    ImageClass::External => "external texture".into(),
+                }
+            }
+            TypeInner::Sampler { comparison } => format!("sampler comparison={comparison}"),
+            TypeInner::AccelerationStructure { .. } => "acceleration structure".into(),
+            other => panic!("binding of unexpected type {other:?}"),
+        },
+        other => panic!("binding in address space {other:?}"),
+    }
+}
+
+fn rust_binding_kind(entry: &wgpu::BindGroupLayoutEntry) -> String {
+    use wgpu::{BindingType, BufferBindingType, StorageTextureAccess, TextureSampleType};
+    let dim = |d: wgpu::TextureViewDimension| match d {
+        wgpu::TextureViewDimension::D1 => "D1",
+        wgpu::TextureViewDimension::D2 => "D2",
+        wgpu::TextureViewDimension::D2Array => "D2 array",
+        wgpu::TextureViewDimension::Cube => "Cube",
+        wgpu::TextureViewDimension::CubeArray => "Cube array",
+        wgpu::TextureViewDimension::D3 => "D3",
+    };
+    match entry.ty {
+        BindingType::Buffer {
+            ty: BufferBindingType::Uniform,
+            ..
+        } => "uniform buffer".into(),
+        BindingType::Buffer {
+            ty: BufferBindingType::Storage { read_only },
+            ..
+        } => format!(
+            "storage buffer, {}",
+            if read_only { "read" } else { "read_write" }
+        ),
+        BindingType::Texture {
+            sample_type,
+            view_dimension,
+            multisampled,
+        } => {
+            let kind = match sample_type {
+                TextureSampleType::Float { .. } => "Float",
+                TextureSampleType::Uint => "Uint",
+                TextureSampleType::Sint => "Sint",
+                TextureSampleType::Depth => "Depth",
+            };
+            format!(
+                "texture {kind} {} multisampled={multisampled}",
+                dim(view_dimension)
+            )
+        }
+        BindingType::StorageTexture {
+            access,
+            format,
+            view_dimension,
+        } => {
+            let access = match access {
+                StorageTextureAccess::ReadOnly => "read",
+                StorageTextureAccess::WriteOnly => "write",
+                _ => "read_write",
+            };
+            format!(
+                "storage texture {format:?} {} {access}",
+                dim(view_dimension)
+            )
+        }
+        BindingType::Sampler(s) => format!(
+            "sampler comparison={}",
+            s == wgpu::SamplerBindingType::Comparison
+        ),
+        BindingType::AccelerationStructure { .. } => "acceleration structure".into(),
+        ref other => panic!("unexpected Rust binding type {other:?}"),
+    }
+}
+
+/// Checks every binding of `module` (pass `label`) against `groups`, both
+/// ways, and that each entry is visible to every entry point that uses it.
+fn check_bindings(
+    label: &str,
+    module: &naga::Module,
+    groups: &[(u32, &[wgpu::BindGroupLayoutEntry])],
+) {
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(module)
+    .unwrap_or_else(|e| panic!("{label} fails validation: {e:?}"));
+    // The stages whose entry points use global `handle`.
+    let stages = |handle: naga::Handle<naga::GlobalVariable>| {
+        module
+            .entry_points
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !info.get_entry_point(*i)[handle].is_empty())
+            .map(|(_, e)| match e.stage {
+                naga::ShaderStage::Vertex => wgpu::ShaderStages::VERTEX,
+                naga::ShaderStage::Fragment => wgpu::ShaderStages::FRAGMENT,
+                naga::ShaderStage::Compute => wgpu::ShaderStages::COMPUTE,
+                other => panic!("{label}: unexpected stage {other:?}"),
+            })
+            .fold(wgpu::ShaderStages::NONE, |a, b| a | b)
+    };
+    let mut seen = Vec::new();
+    for (handle, var) in module.global_variables.iter() {
+        let Some(rb) = &var.binding else { continue };
+        let name = var.name.as_deref().unwrap_or("?");
+        let at = format!(
+            "{label}: {name} (@group({}) @binding({}))",
+            rb.group, rb.binding
+        );
+        let entries = groups
+            .iter()
+            .find(|(g, _)| *g == rb.group)
+            .unwrap_or_else(|| panic!("{at}: Rust has no group {}", rb.group))
+            .1;
+        let entry = entries
+            .iter()
+            .find(|e| e.binding == rb.binding)
+            .unwrap_or_else(|| panic!("{at}: Rust's group has no binding {}", rb.binding));
+        assert_eq!(
+            wgsl_binding_kind(module, var),
+            rust_binding_kind(entry),
+            "{at}: WGSL (left) and Rust (right) disagree"
+        );
+        let used_in = stages(handle);
+        assert!(
+            entry.visibility.contains(used_in),
+            "{at}: visible to {:?}, used in {used_in:?}",
+            entry.visibility
+        );
+        assert!(entry.count.is_none(), "{at}: binding arrays are not used");
+        seen.push((rb.group, rb.binding));
+    }
+    for (group, entries) in groups {
+        for e in entries.iter() {
+            assert!(
+                seen.contains(&(*group, e.binding)),
+                "{label}: Rust's group {group} binding {} has no WGSL declaration",
+                e.binding
+            );
+        }
+    }
+}
+
+/// Every pass's global variables against the Rust bind-group layouts:
+/// group, binding number and type (uniform / read-only / read-write storage
+/// buffer, texture kind and dimension, storage texture format and access,
+/// sampler, acceleration structure), both ways; the driver variants with
+/// the driver's group too.
+#[test]
+fn bindings_match_rust_layouts() {
+    use celray::gpu::shader::{compose_variant, Traversal};
+    use celray::render::driver_accel::{DRIVER_GROUP, DRIVER_LAYOUT};
+    let mut count = 0;
+    for file in pass_files() {
+        check_bindings(file, &parse(file), &rust_groups(file));
+        count += 1;
+    }
+    assert!(count >= 7, "every pass file is checked");
+    for file in ["trace.wgsl", "ray_batch.wgsl"] {
+        let src = compose_variant(file, Traversal::Driver).unwrap();
+        let module = naga::front::wgsl::parse_str(&src)
+            .unwrap_or_else(|e| panic!("{file} (driver):\n{}", e.emit_to_string(&src)));
+        let mut groups = rust_groups(file);
+        groups.push((DRIVER_GROUP, &DRIVER_LAYOUT[..]));
+        check_bindings(&format!("{file} (driver)"), &module, &groups);
+    }
+}
+
+/// The scene's group is declared once, in lib/scene_bindings.wgsl: no pass
+/// file or other piece declares a group-0 binding of its own next to it.
+#[test]
+fn scene_group_is_declared_once() {
+    use celray::gpu::shader::SHADER_FILES;
+    for (file, text) in SHADER_FILES {
+        let scene_users = [
+            "raster.wgsl",
+            "trace.wgsl",
+            "ray_batch.wgsl",
+            "accumulate.wgsl",
+        ];
+        if *file == "lib/scene_bindings.wgsl" {
+            continue;
+        }
+        if scene_users.contains(file) {
+            assert!(
+                text.contains("#include \"lib/scene_bindings.wgsl\""),
+                "{file} reads the scene and must include lib/scene_bindings.wgsl"
+            );
+        }
+        if scene_users.contains(file) || file.starts_with("lib/") {
+            assert!(
+                !text.contains("@group(0)"),
+                "{file} declares a group-0 binding: the scene's group is lib/scene_bindings.wgsl's"
+            );
         }
     }
 }

@@ -10,7 +10,8 @@
 // Fixed storage: CSG_STACK entries of 2 * CSG_MAX_INTERVALS endpoints, plus
 // one scratch entry, 12 bytes an endpoint (t, packed normal, material and
 // flip bit): ~1 KB per invocation (on CPU drivers a private array costs in
-// proportion to its size, zeroed where it is declared). Trees that could need more are refused at load (see
+// proportion to its size, zeroed where it is declared). Trees that could
+// need more are refused at load (see
 // src/scene/csg.rs); a mesh leaf crossed more than CSG_MESH_MAX_CROSSINGS
 // times, or a list that overflows anyway, sets `overflowed` (a magenta
 // pixel and a count), never a silent wrong answer. Every instruction and
@@ -23,8 +24,9 @@
 // relative), grazing rays give vanishing intervals: both resolve the same
 // way at every pixel, so no speckles.
 //
-// Includes: after intersect.wgsl and traverse.wgsl; the pass declares
-// `csg_ops` and `csg_leaves`.
+// Includes: after intersect.wgsl and traverse.wgsl; `csg_ops` and
+// `csg_leaves` are the scene's (lib/scene_bindings.wgsl), their structs in
+// lib/types.wgsl.
 
 // Pipelines for scenes without CSG set this to false, which removes the CSG
 // code from the traversal: on lavapipe its mere presence in the traversal
@@ -38,41 +40,21 @@ const CSG_OP_UNION: u32 = 2u;
 const CSG_OP_INTERSECTION: u32 = 3u;
 const CSG_OP_DIFFERENCE: u32 = 4u;
 const CSG_NO_MATERIAL: u32 = 0xffffffffu;
-const CSG_MAX_INTERVALS: u32 = 8u;
-const CSG_STACK: u32 = 4u;
-const CSG_MESH_MAX_CROSSINGS: u32 = 8u;
-// 2 * CSG_MAX_INTERVALS endpoints per entry, CSG_STACK + 1 entries.
-const CSG_ENDPOINTS: u32 = 16u;
-const CSG_SLOTS: u32 = 5u;
-const CSG_FAR: f32 = 1.0e30;
-const CSG_EPS_ABS: f32 = 1.0e-5;
-const CSG_EPS_REL: f32 = 1.0e-5;
-
-struct GpuCsgOp {
-    op: u32,
-    arg: u32,
-}
-
-struct GpuCsgLeaf {
-    leaf_from_csg: mat4x4<f32>,
-    csg_normal_from_leaf: mat4x4<f32>,
-    params: vec4<f32>,
-    kind: u32,
-    blas_root: u32,
-    material: u32,
-    _pad: u32,
-}
+// CSG_MAX_INTERVALS, CSG_STACK, CSG_MESH_MAX_CROSSINGS, CSG_ENDPOINTS
+// (2 * CSG_MAX_INTERVALS endpoints per entry), CSG_SLOTS (CSG_STACK + 1
+// entries), CSG_STORE_ENDPOINTS (their product), CSG_FAR, CSG_EPS_ABS and
+// CSG_EPS_REL come from the generated lib/limits.wgsl (src/gpu/shader.rs).
 
 // Endpoint storage: entry s of the stack lives in physical slot
-// slot[s]; endpoint k of slot p is at p * CSG_ENDPOINTS + k (80 = 5 * 16).
+// slot[s]; endpoint k of slot p is at p * CSG_ENDPOINTS + k (CSG_STORE_ENDPOINTS = CSG_SLOTS * CSG_ENDPOINTS).
 // `n` is the octahedral normal (pack2x16snorm); `tag` is the leaf material
 // (low 31 bits, 0x7fffffff: none) and bit 31 flips the normal.
 struct CsgStore {
-    t: array<f32, 80>,
-    n: array<u32, 80>,
-    tag: array<u32, 80>,
-    len: array<u32, 5>,
-    slot: array<u32, 5>,
+    t: array<f32, CSG_STORE_ENDPOINTS>,
+    n: array<u32, CSG_STORE_ENDPOINTS>,
+    tag: array<u32, CSG_STORE_ENDPOINTS>,
+    len: array<u32, CSG_SLOTS>,
+    slot: array<u32, CSG_SLOTS>,
 }
 
 // Module scope: zeroed once per invocation (a function-local store, zeroed

@@ -1,7 +1,7 @@
 // Base colour from images and patterns, shared by the raster and trace
-// passes. The including file declares `base_color_maps`
-// (texture_2d_array<f32>, sRGB-decoding), `map_linear` and `map_nearest`
-// (samplers), and needs lib/intersect.wgsl's SHAPE_* constants.
+// passes. It reads the scene's `base_color_maps` (texture_2d_array<f32>,
+// sRGB-decoding), `map_linear` and `map_nearest` (samplers), declared in
+// lib/scene_bindings.wgsl, and needs lib/intersect.wgsl's SHAPE_* constants.
 
 // False in pipelines for scenes whose materials have no image or pattern:
 // the texture code is compiled out.

@@ -1,6 +1,6 @@
 // Two-level BVH traversal: the WGSL twin of SceneAccel::closest_hit in
-// src/accel/mod.rs. The including pass declares `nodes`, `triangles`,
-// `shapes`, `instances` and `tlas_items`.
+// src/accel/mod.rs. It reads the scene's `nodes`, `triangles`, `shapes`,
+// `instances` and `tlas_items` (lib/scene_bindings.wgsl).
 //
 // Lavapipe silently stops an invocation's loops after ~65,535 iterations in
 // total. Every traversal step spends one unit of `steps_left`, a budget per
@@ -9,8 +9,7 @@
 // a truncated image is never silent.
 
 const NO_HIT: u32 = 0xffffffffu;
-const MAX_TRAVERSAL_STEPS: u32 = 12000u;
-const TRAVERSAL_STACK: u32 = 64u;
+// MAX_TRAVERSAL_STEPS and TRAVERSAL_STACK: lib/limits.wgsl (generated).
 
 // False in pipelines for scenes without triangle meshes: the mesh traversal
 // is compiled out (the CPU driver runs a smaller kernel faster).

@@ -1,5 +1,9 @@
 // Layout twins of the Rust structs in src/gpu/twins.rs (same names, same
-// fields; a test parses this file with naga and compares offsets).
+// fields; a test parses this file with naga and compares offsets). The
+// limits shared with Rust come from lib/limits.wgsl, which the composer
+// generates from the Rust constants (src/gpu/shader.rs, limits_header).
+
+#include "lib/limits.wgsl"
 
 // Per-sample camera and frame data.
 struct FrameUniforms {
@@ -44,7 +48,6 @@ struct GpuLight {
 
 const SHADING_BLINN_PHONG: u32 = 0u;
 const SHADING_TOON: u32 = 1u;
-const MAX_TOON_BANDS: u32 = 16u;
 
 struct GpuMaterial {
     base_color: vec3<f32>,
@@ -158,5 +161,21 @@ struct GpuHit {
     instance: u32,
     steps: u32,
     overflow: u32,
+    _pad: u32,
+}
+
+// One instruction of a CSG postfix program (lib/csg.wgsl).
+struct GpuCsgOp {
+    op: u32,
+    arg: u32,
+}
+
+struct GpuCsgLeaf {
+    leaf_from_csg: mat4x4<f32>,
+    csg_normal_from_leaf: mat4x4<f32>,
+    params: vec4<f32>,
+    kind: u32,
+    blas_root: u32,
+    material: u32,
     _pad: u32,
 }

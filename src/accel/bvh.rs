@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use crate::gpu::twins::BvhNode;
+use super::layout::BvhNode;
 
 /// An axis-aligned box.
 #[derive(Debug, Clone, Copy, PartialEq)]

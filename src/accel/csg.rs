@@ -16,18 +16,18 @@
 use glam::{Mat4, Vec3};
 
 use super::bvh::Aabb;
-use super::{intersect, AccelError, TraceResult};
-use crate::gpu::twins::{
-    BvhNode, GpuCsgLeaf, GpuCsgOp, GpuTriangle, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS,
-    CSG_NO_MATERIAL, CSG_OP_DIFFERENCE, CSG_OP_END, CSG_OP_INTERSECTION, CSG_OP_LEAF, CSG_OP_UNION,
-    CSG_STACK, MAX_TRAVERSAL_STEPS, SHAPE_MESH,
+use super::layout::{
+    BvhNode, GpuCsgLeaf, GpuCsgOp, GpuTriangle, CSG_NO_MATERIAL, CSG_OP_DIFFERENCE, CSG_OP_END,
+    CSG_OP_INTERSECTION, CSG_OP_LEAF, CSG_OP_UNION, MAX_TRAVERSAL_STEPS, SHAPE_MESH,
 };
-use crate::scene::{Csg, CsgNode, Mesh};
+use super::{intersect, AccelError, TraceResult};
+use crate::scene::{Csg, CsgNode, Mesh, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK};
 
 /// Leaves are intersected over (-CSG_FAR, CSG_FAR): the whole line.
 pub const CSG_FAR: f32 = 1.0e30;
 
-/// Epsilon strategy (the same constants in shaders/lib/csg.wgsl).
+/// Epsilon strategy (handed to shaders/lib/csg.wgsl by the limits header
+/// that `gpu::shader::limits_header` generates).
 ///
 /// Two consecutive endpoints of an interval list closer than
 /// `csg_eps(t) = CSG_EPS_ABS + CSG_EPS_REL * |t|` cancel each other: a gap

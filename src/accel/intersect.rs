@@ -8,7 +8,7 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::gpu::twins::{
+use super::layout::{
     GpuTriangle, SHAPE_BOX, SHAPE_CONE, SHAPE_CYLINDER, SHAPE_DISK, SHAPE_QUAD, SHAPE_SPHERE,
 };
 

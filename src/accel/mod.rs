@@ -2,22 +2,23 @@
 //! BVH per mesh (binned SAH over triangles; an analytic shape is its own
 //! leaf) and a top-level BVH over instances (world bounds of each transformed
 //! bottom level). Also the CPU reference traversal the tests compare the GPU
-//! against; it is never used for rendering. Imports scene, glam and the GPU
-//! twin structs (plain data).
+//! against; it is never used for rendering. Imports scene and glam; the
+//! plain Pod layouts it builds for the GPU are in [`layout`] (no wgpu here).
 
 pub mod bvh;
 pub mod csg;
 pub mod intersect;
+pub mod layout;
 
 use glam::{Mat4, Vec3};
 
-use crate::gpu::twins::{
+use crate::scene::{Mesh, PlaneKind, Scene, Shape};
+use bvh::Aabb;
+use layout::{
     BvhNode, GpuCsgLeaf, GpuCsgOp, GpuShape, GpuTriangle, CSG_NO_MATERIAL, MAX_TRAVERSAL_STEPS,
     SHAPE_BOX, SHAPE_CONE, SHAPE_CSG, SHAPE_CYLINDER, SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD,
     SHAPE_SPHERE, TRAVERSAL_STACK,
 };
-use crate::scene::{Mesh, PlaneKind, Scene, Shape};
-use bvh::Aabb;
 
 /// Triangles per bottom-level leaf and instances per top-level leaf.
 const MESH_LEAF: usize = 4;

@@ -4,9 +4,7 @@
 
 use wgpu::util::DeviceExt;
 
-use celray::gpu::layout::{
-    buffer_entries, read_only_storage_entry, read_write_storage_entry, uniform_entry,
-};
+use celray::gpu::layout::{buffer_entries, BENCH_FLOOR_LAYOUT};
 use celray::gpu::timer::GpuTimer;
 use celray::gpu::{shader, Gpu};
 
@@ -42,16 +40,11 @@ fn spheres(n: u32) -> Vec<[f32; 4]> {
 /// kernel against `n` spheres at `width` x `height`.
 pub fn floor_ms(gpu: &Gpu, width: u32, height: u32, n: u32, frames: u32) -> anyhow::Result<f64> {
     let module = shader::create_module(gpu, "bench_floor.wgsl")?;
-    let c = wgpu::ShaderStages::COMPUTE;
     let layout = gpu
         .device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("floor layout"),
-            entries: &[
-                uniform_entry(0, c),
-                read_only_storage_entry(1, c),
-                read_write_storage_entry(2),
-            ],
+            entries: &BENCH_FLOOR_LAYOUT,
         });
     let pipeline_layout = gpu
         .device

@@ -1,12 +1,18 @@
-//! Bind group layout entries and bind group entries, written once for every pass.
+//! Bind group layout entries and bind group entries, written once for every
+//! pass. The entry builders are `const fn`, so each pass states its layout
+//! as a `const` array that `tests/shaders.rs` reads without a GPU and checks
+//! against the WGSL declarations (binding numbers and types).
 
 /// A uniform buffer visible to `visibility`.
-pub fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+pub const fn uniform_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     buffer_entry(binding, visibility, wgpu::BufferBindingType::Uniform)
 }
 
 /// A read-only storage buffer visible to `visibility`.
-pub fn read_only_storage_entry(
+pub const fn read_only_storage_entry(
     binding: u32,
     visibility: wgpu::ShaderStages,
 ) -> wgpu::BindGroupLayoutEntry {
@@ -18,7 +24,7 @@ pub fn read_only_storage_entry(
 }
 
 /// A read-write storage buffer for compute shaders.
-pub fn read_write_storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+pub const fn read_write_storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     buffer_entry(
         binding,
         wgpu::ShaderStages::COMPUTE,
@@ -26,7 +32,7 @@ pub fn read_write_storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     )
 }
 
-fn buffer_entry(
+const fn buffer_entry(
     binding: u32,
     visibility: wgpu::ShaderStages,
     ty: wgpu::BufferBindingType,
@@ -44,7 +50,7 @@ fn buffer_entry(
 }
 
 /// A 2D texture read with textureLoad by compute shaders.
-pub fn texture_entry(
+pub const fn texture_entry(
     binding: u32,
     sample_type: wgpu::TextureSampleType,
 ) -> wgpu::BindGroupLayoutEntry {
@@ -61,7 +67,7 @@ pub fn texture_entry(
 }
 
 /// A write-only 2D storage texture for compute shaders.
-pub fn storage_texture_entry(
+pub const fn storage_texture_entry(
     binding: u32,
     format: wgpu::TextureFormat,
 ) -> wgpu::BindGroupLayoutEntry {
@@ -78,7 +84,10 @@ pub fn storage_texture_entry(
 }
 
 /// The base-colour texture array (filterable, sampled).
-pub fn map_array_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+pub const fn map_array_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,
@@ -92,7 +101,10 @@ pub fn map_array_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::Bi
 }
 
 /// A filtering sampler.
-pub fn sampler_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+pub const fn sampler_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,
@@ -100,6 +112,15 @@ pub fn sampler_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::Bind
         count: None,
     }
 }
+
+/// The one group of the benchmark's floor kernel (`shaders/bench_floor.wgsl`,
+/// run by `celray bench`, outside the library): its parameters, the spheres
+/// and the RGBA8 output. Here so that `tests/shaders.rs` can check it too.
+pub const BENCH_FLOOR_LAYOUT: [wgpu::BindGroupLayoutEntry; 3] = [
+    uniform_entry(0, wgpu::ShaderStages::COMPUTE),
+    read_only_storage_entry(1, wgpu::ShaderStages::COMPUTE),
+    read_write_storage_entry(2),
+];
 
 /// Bind group entries 0, 1, 2, ... binding whole buffers, in order.
 pub fn buffer_entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {

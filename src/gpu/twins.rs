@@ -1,12 +1,21 @@
 //! Rust twins of the WGSL structs in `shaders/lib/types.wgsl`: same names,
 //! same field names, `#[repr(C)]` and Pod. `tests/shaders.rs` parses the WGSL
 //! with naga and checks every size, offset and constant against these.
+//!
+//! What the CPU side builds for the GPU without knowing wgpu (BVH nodes,
+//! triangles, shapes, CSG programs, traversal limits) lives in
+//! [`crate::accel::layout`] and the CSG and toon limits in [`crate::scene`];
+//! this module re-exports them, so every twin is reachable from here. The
+//! limits WGSL needs reach it only through the header
+//! [`crate::gpu::shader::limits_header`] generates from these constants.
 
 use bytemuck::{Pod, Zeroable};
 
+pub use crate::accel::layout::*;
+pub use crate::scene::{CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK, MAX_TOON_BANDS};
+
 pub const SHADING_BLINN_PHONG: u32 = 0;
 pub const SHADING_TOON: u32 = 1;
-pub const MAX_TOON_BANDS: u32 = 16;
 pub const TONE_MAP_CLAMP: u32 = 0;
 pub const TONE_MAP_REINHARD: u32 = 1;
 /// Workgroup edge of the accumulate kernel (16 x 16 invocations).
@@ -154,62 +163,19 @@ impl Vertex {
     };
 }
 
-/// Shape kinds of [`GpuShape::kind`].
-pub const SHAPE_SPHERE: u32 = 0;
-pub const SHAPE_BOX: u32 = 1;
-pub const SHAPE_CYLINDER: u32 = 2;
-pub const SHAPE_CONE: u32 = 3;
-pub const SHAPE_QUAD: u32 = 4;
-pub const SHAPE_DISK: u32 = 5;
-pub const SHAPE_MESH: u32 = 6;
-/// Entries of the traversal stack, shared by both levels (the bottom level
-/// continues above the top level's entries); deeper trees are refused.
-pub const TRAVERSAL_STACK: u32 = 64;
-/// Loop iterations one ray query may take before it gives up and reports
-/// overflow: well under lavapipe's silent cut at ~65,535 per invocation.
-pub const MAX_TRAVERSAL_STEPS: u32 = 12000;
+/// Loop iterations one pixel of the trace kernel may spend on traversal,
+/// all its rays together: well under lavapipe's silent cut at ~65,535.
+pub const MAX_INVOCATION_STEPS: u32 = 48000;
+/// View depth of the G-buffer where no surface is hit (the largest finite
+/// f16, so it survives every target format).
+pub const FAR_DEPTH: f32 = 65504.0;
+/// Widest outline the accumulate pass draws, in pixels: wider material
+/// outlines are drawn this wide (it sizes the workgroup's tile halo).
+pub const MAX_OUTLINE_RADIUS: u32 = 8;
 /// Workgroup edge of the trace kernel (8 x 8 invocations).
 pub const TRACE_WORKGROUP: u32 = 8;
 /// Workgroup size of the ray-batch kernel used by tests.
 pub const RAY_BATCH_WORKGROUP: u32 = 64;
-
-/// A node of a bounding volume hierarchy. A leaf has `count > 0` items
-/// starting at `left_or_first`; an inner node's children are nodes
-/// `left_or_first` and `left_or_first + 1`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct BvhNode {
-    pub bounds_min: [f32; 3],
-    pub left_or_first: u32,
-    pub bounds_max: [f32; 3],
-    pub count: u32,
-}
-
-/// A triangle of a mesh in object space, with its vertex normals; the w
-/// components carry the texture coordinates: `(p_k.w, n_k.w)` is corner
-/// k's (u, v).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct GpuTriangle {
-    pub p0: [f32; 4],
-    pub p1: [f32; 4],
-    pub p2: [f32; 4],
-    pub n0: [f32; 4],
-    pub n1: [f32; 4],
-    pub n2: [f32; 4],
-}
-
-/// A base shape for the ray tracer: its kind, parameters (radius, half
-/// extents, height, ...) and, for meshes, the root of its bottom-level BVH.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct GpuShape {
-    pub params: [f32; 4],
-    pub kind: u32,
-    pub blas_root: u32,
-    pub _pad0: u32,
-    pub _pad1: u32,
-}
 
 /// A ray for the ray-batch kernel (tests and benchmarks): `origin.w` is
 /// t_min and `dir.w` is t_max.
@@ -230,53 +196,6 @@ pub struct GpuHit {
     pub instance: u32,
     pub steps: u32,
     pub overflow: u32,
-    pub _pad: u32,
-}
-
-/// Shape kind of a CSG tree: `blas_root` is the first instruction of its
-/// postfix program in the CSG op buffer.
-pub const SHAPE_CSG: u32 = 7;
-/// CSG program instructions ([`GpuCsgOp::op`]).
-pub const CSG_OP_END: u32 = 0;
-pub const CSG_OP_LEAF: u32 = 1;
-pub const CSG_OP_UNION: u32 = 2;
-pub const CSG_OP_INTERSECTION: u32 = 3;
-pub const CSG_OP_DIFFERENCE: u32 = 4;
-/// [`GpuCsgLeaf::material`] of a leaf that uses the instance's material.
-pub const CSG_NO_MATERIAL: u32 = u32::MAX;
-/// Intervals per CSG stack entry (twin of `scene::CSG_MAX_INTERVALS`).
-pub const CSG_MAX_INTERVALS: u32 = 8;
-/// CSG stack entries (twin of `scene::CSG_STACK`).
-pub const CSG_STACK: u32 = 4;
-/// Crossings a mesh leaf keeps per ray (twin of `scene::CSG_MESH_MAX_CROSSINGS`).
-pub const CSG_MESH_MAX_CROSSINGS: u32 = 8;
-
-/// One instruction of a CSG postfix program. `op` is a `CSG_OP_*`; for
-/// `CSG_OP_LEAF`, `arg` indexes the leaf buffer; for the set operations,
-/// `arg` is 1 when the operands were evaluated in swapped order (the first
-/// operand is on top of the stack).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct GpuCsgOp {
-    pub op: u32,
-    pub arg: u32,
-}
-
-/// A CSG leaf: an analytic shape or a mesh (`blas_root`) placed in the CSG
-/// shape's object space, with an optional material.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct GpuCsgLeaf {
-    /// Inverse of the leaf's transform: CSG space to leaf space.
-    pub leaf_from_csg: [[f32; 4]; 4],
-    /// Inverse transpose of the leaf's transform: leaf normals to CSG space.
-    pub csg_normal_from_leaf: [[f32; 4]; 4],
-    pub params: [f32; 4],
-    /// `SHAPE_*` (sphere, box, cylinder, cone or mesh).
-    pub kind: u32,
-    pub blas_root: u32,
-    /// Material id, or [`CSG_NO_MATERIAL`].
-    pub material: u32,
     pub _pad: u32,
 }
 

@@ -1,44 +1,50 @@
 //! Pass 3: add this sample's colour (with outlines) to the accumulator.
+//! Group 0 is the scene's shared group (instances and materials give each
+//! pixel's outline); group 1 is [`PASS_LAYOUT`] (frame uniforms, one
+//! G-buffer, the accumulator).
 
-use crate::gpu::layout::{
-    read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
-};
+use crate::gpu::layout::{read_write_storage_entry, texture_entry, uniform_entry};
 use crate::gpu::twins::ACCUMULATE_WORKGROUP;
 use crate::gpu::{shader, Gpu, GpuError};
-use crate::render::scene_buffers::SceneBuffers;
+use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
 use crate::render::targets::{GBuffer, Targets};
+
+const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
+
+/// Group 1 of the accumulate pass, binding by binding as
+/// `shaders/accumulate.wgsl` declares it.
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 5] = [
+    uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
+    texture_entry(1, FLOAT),                       // color_tex
+    texture_entry(2, FLOAT),                       // normal_depth_tex
+    texture_entry(3, wgpu::TextureSampleType::Uint), // id_tex
+    read_write_storage_entry(4),                   // accum
+];
 
 pub struct AccumulatePass {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// The scene's shared group.
+    scene_group: Option<wgpu::BindGroup>,
     bind_groups: Option<[wgpu::BindGroup; 2]>,
 }
 
 impl AccumulatePass {
     pub fn new(gpu: &Gpu) -> Result<AccumulatePass, GpuError> {
         let module = shader::create_module(gpu, "accumulate.wgsl")?;
-        let c = wgpu::ShaderStages::COMPUTE;
-        let float = wgpu::TextureSampleType::Float { filterable: false };
         gpu.scoped(|| {
+            let scene_layout = scene_layout(gpu);
             let layout = gpu
                 .device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("accumulate bind group layout"),
-                    entries: &[
-                        uniform_entry(0, c),
-                        read_only_storage_entry(1, c),
-                        read_only_storage_entry(2, c),
-                        texture_entry(3, float),
-                        texture_entry(4, float),
-                        texture_entry(5, wgpu::TextureSampleType::Uint),
-                        read_write_storage_entry(6),
-                    ],
+                    entries: &PASS_LAYOUT,
                 });
             let pipeline_layout =
                 gpu.device
                     .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                         label: Some("accumulate pipeline layout"),
-                        bind_group_layouts: &[Some(&layout)],
+                        bind_group_layouts: &[Some(&scene_layout), Some(&layout)],
                         immediate_size: 0,
                     });
             let pipeline = gpu
@@ -54,6 +60,7 @@ impl AccumulatePass {
             AccumulatePass {
                 pipeline,
                 layout,
+                scene_group: None,
                 bind_groups: None,
             }
         })
@@ -80,31 +87,24 @@ impl AccumulatePass {
                     },
                     wgpu::BindGroupEntry {
                         binding: 1,
-                        resource: scene.instances.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: scene.materials.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
                         resource: wgpu::BindingResource::TextureView(&view(&g.color)),
                     },
                     wgpu::BindGroupEntry {
-                        binding: 4,
+                        binding: 2,
                         resource: wgpu::BindingResource::TextureView(&view(&g.normal_depth)),
                     },
                     wgpu::BindGroupEntry {
-                        binding: 5,
+                        binding: 3,
                         resource: wgpu::BindingResource::TextureView(&view(&g.id)),
                     },
                     wgpu::BindGroupEntry {
-                        binding: 6,
+                        binding: 4,
                         resource: targets.accum.as_entire_binding(),
                     },
                 ],
             })
         };
+        self.scene_group = Some(scene.bind_group.clone());
         self.bind_groups = Some([
             group("accumulate bind group (raster)", &targets.raster),
             group("accumulate bind group (traced)", &targets.traced),
@@ -124,7 +124,8 @@ impl AccumulatePass {
         });
         pass.set_pipeline(&self.pipeline);
         let groups = self.bind_groups.as_ref();
-        pass.set_bind_group(0, groups.map(|g| &g[usize::from(traced)]), &[]);
+        pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
+        pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[usize::from(traced)]), &[]);
         pass.dispatch_workgroups(
             targets.width.div_ceil(ACCUMULATE_WORKGROUP),
             targets.height.div_ceil(ACCUMULATE_WORKGROUP),

@@ -12,6 +12,9 @@
 //!   [`MASK_MESH`] or [`MASK_OTHER`] (hybrid primary rays skip meshes).
 //! - Motion blur: [`DriverAccel::encode_motion`] writes each instance's
 //!   transform at the sample's shutter time and rebuilds the top level.
+//! - Bindings: a driver-variant pass has the scene's group 0 and its own
+//!   group 1 like the software variant, plus [`DRIVER_LAYOUT`] as group
+//!   [`DRIVER_GROUP`] (`scene_tlas`, `rq_mesh_base` in trace_rq.wgsl).
 
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
@@ -85,31 +88,36 @@ fn mesh_triangle_range(nodes: &[crate::gpu::twins::BvhNode], root: u32) -> Optio
     (total > 0 && hi - lo == total).then_some((lo, total))
 }
 
-/// The layout of bind group 2 of a driver-variant pass: the top level and
-/// the per-shape mesh bases (`scene_tlas`, `rq_mesh_base` in trace_rq.wgsl).
+/// The group of the driver's structures in a driver-variant pass.
+pub const DRIVER_GROUP: u32 = 2;
+
+/// Group [`DRIVER_GROUP`] of a driver-variant pass: the top level and the
+/// per-shape mesh bases (`scene_tlas`, `rq_mesh_base` in trace_rq.wgsl).
+pub const DRIVER_LAYOUT: [wgpu::BindGroupLayoutEntry; 2] = [
+    wgpu::BindGroupLayoutEntry {
+        binding: 0,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::AccelerationStructure {
+            vertex_return: false,
+        },
+        count: None,
+    },
+    crate::gpu::layout::read_only_storage_entry(1, wgpu::ShaderStages::COMPUTE),
+];
+
+/// The layout of group [`DRIVER_GROUP`] ([`DRIVER_LAYOUT`]).
 pub fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
-    let c = wgpu::ShaderStages::COMPUTE;
     gpu.device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("driver accel layout"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: c,
-                    ty: wgpu::BindingType::AccelerationStructure {
-                        vertex_return: false,
-                    },
-                    count: None,
-                },
-                crate::gpu::layout::read_only_storage_entry(1, c),
-            ],
+            entries: &DRIVER_LAYOUT,
         })
 }
 
 /// A driver-variant pass's pipeline: `module` (composed with
-/// [`crate::gpu::shader::Traversal::Driver`]) over `groups` (the pass's own
-/// bind group layouts, then [`bind_group_layout`] as group 2; a pass with one
-/// group of its own gets an empty group 1), with override `constants`.
+/// [`crate::gpu::shader::Traversal::Driver`]) over `own` (the scene's
+/// layout and the pass's own, groups 0 and 1), then [`bind_group_layout`]
+/// as group [`DRIVER_GROUP`], with override `constants`.
 pub fn pipeline(
     gpu: &Gpu,
     label: &str,
@@ -125,7 +133,7 @@ pub fn pipeline(
             entries: &[],
         });
     let mut groups: Vec<Option<&wgpu::BindGroupLayout>> = own.iter().map(|l| Some(*l)).collect();
-    while groups.len() < 2 {
+    while groups.len() < DRIVER_GROUP as usize {
         groups.push(Some(&empty));
     }
     groups.push(Some(driver));
@@ -148,21 +156,6 @@ pub fn pipeline(
             },
             cache: None,
         })
-}
-
-/// An empty bind group for the unused group 1 of a one-group pass.
-pub fn empty_bind_group(gpu: &Gpu) -> wgpu::BindGroup {
-    let layout = gpu
-        .device
-        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("empty layout"),
-            entries: &[],
-        });
-    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("empty bind group"),
-        layout: &layout,
-        entries: &[],
-    })
 }
 
 impl DriverAccel {

@@ -492,7 +492,7 @@ impl Renderer {
             .iter()
             .map(|m| m.outline_width_px)
             .fold(0.0f32, f32::max)
-            .min(8.0);
+            .min(crate::gpu::twins::MAX_OUTLINE_RADIUS as f32);
         FrameUniforms {
             clip_from_world: sc.clip_from_world.to_cols_array_2d(),
             eye_in_world: sc.eye.extend(1.0).to_array(),

@@ -1,8 +1,9 @@
-//! Pass 1: rasterize every instance into the G-buffer, shaded.
+//! Pass 1: rasterize every instance into the G-buffer, shaded. Group 0 is
+//! the scene's shared group; group 1 is [`PASS_LAYOUT`] (frame uniforms).
 
-use crate::gpu::twins::Vertex;
+use crate::gpu::twins::{Vertex, FAR_DEPTH};
 use crate::gpu::{shader, Gpu, GpuError};
-use crate::render::scene_buffers::{Cull, SceneBuffers};
+use crate::render::scene_buffers::{scene_layout, Cull, SceneBuffers, PASS_GROUP, SCENE_GROUP};
 use crate::render::settings::RenderMode;
 use crate::render::targets::{
     Targets, ALBEDO_FORMAT, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT,
@@ -21,34 +22,30 @@ pub struct RasterPass {
     bind_group: Option<wgpu::BindGroup>,
 }
 
-use crate::gpu::layout::buffer_entries;
-use crate::gpu::layout::{map_array_entry, read_only_storage_entry, sampler_entry, uniform_entry};
+use crate::gpu::layout::uniform_entry;
+
+/// Group 1 of the raster pass, binding by binding as `shaders/raster.wgsl`
+/// declares it.
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 1] = [
+    uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT), // frame
+];
 
 impl RasterPass {
     pub fn new(gpu: &Gpu) -> Result<RasterPass, GpuError> {
         let module = shader::create_module(gpu, "raster.wgsl")?;
-        let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
         gpu.scoped(|| {
+            let scene_layout = scene_layout(gpu);
             let layout = gpu
                 .device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("raster bind group layout"),
-                    entries: &[
-                        uniform_entry(0, vf),
-                        read_only_storage_entry(1, vf),
-                        read_only_storage_entry(2, vf),
-                        read_only_storage_entry(3, wgpu::ShaderStages::FRAGMENT),
-                        read_only_storage_entry(4, wgpu::ShaderStages::FRAGMENT),
-                        map_array_entry(5, wgpu::ShaderStages::FRAGMENT),
-                        sampler_entry(6, wgpu::ShaderStages::FRAGMENT),
-                        sampler_entry(7, wgpu::ShaderStages::FRAGMENT),
-                    ],
+                    entries: &PASS_LAYOUT,
                 });
             let pipeline_layout =
                 gpu.device
                     .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                         label: Some("raster pipeline layout"),
-                        bind_group_layouts: &[Some(&layout)],
+                        bind_group_layouts: &[Some(&scene_layout), Some(&layout)],
                         immediate_size: 0,
                     });
             RasterPass {
@@ -63,7 +60,7 @@ impl RasterPass {
     }
 
     /// Builds the pipelines the scene needs (once) and binds the frame
-    /// uniforms and the scene's buffers and textures.
+    /// uniforms (the scene's group is the scene's own).
     pub fn prepare(&mut self, gpu: &Gpu, frame: &wgpu::Buffer, scene: &SceneBuffers) {
         self.textures = scene.uses_textures;
         let slot = usize::from(self.textures);
@@ -75,14 +72,10 @@ impl RasterPass {
                 self.textures,
             ));
         }
-        let mut entries = buffer_entries(&[
-            frame,
-            &scene.instances,
-            &scene.materials,
-            &scene.lights,
-            &scene.shapes,
-        ]);
-        entries.extend(scene.textures.bind_group_entries(5));
+        let entries = [wgpu::BindGroupEntry {
+            binding: 0,
+            resource: frame.as_entire_binding(),
+        }];
         self.bind_group = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raster bind group"),
             layout: &self.layout,
@@ -135,7 +128,7 @@ impl RasterPass {
                         r: 0.0,
                         g: 0.0,
                         b: 0.0,
-                        a: 65504.0,
+                        a: f64::from(FAR_DEPTH),
                     },
                 ),
                 attachment(&id, wgpu::Color::TRANSPARENT),
@@ -157,7 +150,8 @@ impl RasterPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
+        pass.set_bind_group(SCENE_GROUP, &scene.bind_group, &[]);
+        pass.set_bind_group(PASS_GROUP, self.bind_group.as_ref(), &[]);
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
         // Raster mode draws everything; hybrid only meshes (the trace pass

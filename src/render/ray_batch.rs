@@ -1,6 +1,7 @@
 //! Closest hits of arbitrary rays on the GPU, by the trace pass's own
 //! traversal: what the tests compare with the CPU reference, and what the
-//! ray-throughput benchmark times.
+//! ray-throughput benchmark times. Group 0 is the scene's shared group,
+//! group 1 [`PASS_LAYOUT`] (the rays and their hits).
 
 use wgpu::util::DeviceExt;
 
@@ -9,7 +10,14 @@ use crate::gpu::shader::Traversal;
 use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP};
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
-use crate::render::scene_buffers::SceneBuffers;
+use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
+
+/// Group 1 of the ray batch, binding by binding as `shaders/ray_batch.wgsl`
+/// declares it.
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 2] = [
+    read_only_storage_entry(0, wgpu::ShaderStages::COMPUTE), // rays
+    read_write_storage_entry(1),                             // hits
+];
 
 pub struct RayBatch {
     /// Without and with the CSG code (override `CSG_ENABLED`): the first
@@ -17,8 +25,8 @@ pub struct RayBatch {
     pipeline: wgpu::ComputePipeline,
     csg_pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
-    /// Group 2 of the driver variant (and an empty group 1), when built so.
-    driver: Option<(wgpu::BindGroupLayout, wgpu::BindGroup)>,
+    /// The layout of group 2 of the driver variant, when built so.
+    driver: Option<wgpu::BindGroupLayout>,
 }
 
 impl RayBatch {
@@ -31,45 +39,31 @@ impl RayBatch {
     /// needs ray queries; trace with [`RayBatch::trace_driver_timed`]).
     pub fn with_traversal(gpu: &Gpu, traversal: Traversal) -> Result<RayBatch, GpuError> {
         let module = shader::create_module_variant(gpu, "ray_batch.wgsl", traversal)?;
-        let c = wgpu::ShaderStages::COMPUTE;
         gpu.scoped(|| {
+            let scene_layout = scene_layout(gpu);
             let layout = gpu
                 .device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("ray batch layout"),
-                    entries: &[
-                        read_only_storage_entry(0, c),
-                        read_only_storage_entry(1, c),
-                        read_only_storage_entry(2, c),
-                        read_only_storage_entry(3, c),
-                        read_only_storage_entry(4, c),
-                        read_only_storage_entry(5, c),
-                        read_write_storage_entry(6),
-                        read_only_storage_entry(7, c),
-                        read_only_storage_entry(8, c),
-                    ],
+                    entries: &PASS_LAYOUT,
                 });
             let pipeline_layout =
                 gpu.device
                     .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                         label: Some("ray batch pipeline layout"),
-                        bind_group_layouts: &[Some(&layout)],
+                        bind_group_layouts: &[Some(&scene_layout), Some(&layout)],
                         immediate_size: 0,
                     });
-            let driver = (traversal == Traversal::Driver).then(|| {
-                (
-                    driver_accel::bind_group_layout(gpu),
-                    driver_accel::empty_bind_group(gpu),
-                )
-            });
+            let driver =
+                (traversal == Traversal::Driver).then(|| driver_accel::bind_group_layout(gpu));
             let make = |csg: bool| {
                 let constants = [("CSG_ENABLED", f64::from(u8::from(csg)))];
-                if let Some((driver_layout, _)) = &driver {
+                if let Some(driver_layout) = &driver {
                     return driver_accel::pipeline(
                         gpu,
                         "ray batch pipeline (driver ray queries)",
                         &module,
-                        &[&layout],
+                        &[&scene_layout, &layout],
                         driver_layout,
                         &constants,
                     );
@@ -141,7 +135,7 @@ impl RayBatch {
     ) -> Result<(Vec<GpuHit>, f64), GpuError> {
         let driver_group = match (&self.driver, accel) {
             (None, None) => None,
-            (Some((layout, empty)), Some(a)) => Some((empty, a.bind_group(gpu, layout))),
+            (Some(layout), Some(a)) => Some(a.bind_group(gpu, layout)),
             _ => {
                 return Err(GpuError::Unsupported(
                     "ray batch: the driver variant traces with driver structures, \
@@ -173,18 +167,7 @@ impl RayBatch {
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
-        let buffers = [
-            &scene.instances,
-            &scene.shapes,
-            &scene.nodes,
-            &scene.triangles,
-            &scene.tlas_items,
-            &ray_buffer,
-            &hit_buffer,
-            &scene.csg_ops,
-            &scene.csg_leaves,
-        ];
-        let entries = buffer_entries(&buffers);
+        let entries = buffer_entries(&[&ray_buffer, &hit_buffer]);
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ray batch bind group"),
             layout: &self.layout,
@@ -203,10 +186,10 @@ impl RayBatch {
             } else {
                 &self.csg_pipeline
             });
-            pass.set_bind_group(0, &group, &[]);
-            if let Some((empty, driver)) = &driver_group {
-                pass.set_bind_group(1, *empty, &[]);
-                pass.set_bind_group(2, driver, &[]);
+            pass.set_bind_group(SCENE_GROUP, &scene.bind_group, &[]);
+            pass.set_bind_group(PASS_GROUP, &group, &[]);
+            if let Some(driver) = &driver_group {
+                pass.set_bind_group(driver_accel::DRIVER_GROUP, driver, &[]);
             }
             // At most 65,535 workgroups: up to 4 million rays per batch.
             let groups = (rays.len() as u32).div_ceil(RAY_BATCH_WORKGROUP);

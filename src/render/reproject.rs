@@ -8,6 +8,8 @@
 //! alone), the usual raster / trace / accumulate passes, then
 //! [`ReprojectPass::encode`] (the blend, copied back into the accumulator,
 //! which the resolve pass shows as usual).
+//!
+//! It reads no scene: its one group is [`PASS_LAYOUT`].
 
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
@@ -40,29 +42,34 @@ pub struct ReprojectPass {
     bind_groups: Option<[wgpu::BindGroup; 2]>,
 }
 
+const C: wgpu::ShaderStages = wgpu::ShaderStages::COMPUTE;
+const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
+const UINT: wgpu::TextureSampleType = wgpu::TextureSampleType::Uint;
+
+/// The reproject pass's one group (it reads no scene), binding by binding
+/// as `shaders/reproject.wgsl` declares it.
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
+    uniform_entry(0, C),           // frame
+    uniform_entry(1, C),           // params
+    texture_entry(2, FLOAT),       // normal_depth_tex
+    texture_entry(3, UINT),        // id_tex
+    read_only_storage_entry(4, C), // current
+    read_only_storage_entry(5, C), // history
+    texture_entry(6, FLOAT),       // history_normal_depth
+    texture_entry(7, UINT),        // history_id
+    read_write_storage_entry(8),   // blended
+    read_write_storage_entry(9),   // motion
+];
+
 impl ReprojectPass {
     pub fn new(gpu: &Gpu) -> Result<ReprojectPass, GpuError> {
         let module = shader::create_module(gpu, "reproject.wgsl")?;
-        let c = wgpu::ShaderStages::COMPUTE;
-        let float = wgpu::TextureSampleType::Float { filterable: false };
-        let uint = wgpu::TextureSampleType::Uint;
         gpu.scoped(|| {
             let layout = gpu
                 .device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("reproject bind group layout"),
-                    entries: &[
-                        uniform_entry(0, c),
-                        uniform_entry(1, c),
-                        texture_entry(2, float),
-                        texture_entry(3, uint),
-                        read_only_storage_entry(4, c),
-                        read_only_storage_entry(5, c),
-                        texture_entry(6, float),
-                        texture_entry(7, uint),
-                        read_write_storage_entry(8),
-                        read_write_storage_entry(9),
-                    ],
+                    entries: &PASS_LAYOUT,
                 });
             let pipeline_layout =
                 gpu.device

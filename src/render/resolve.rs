@@ -11,6 +11,13 @@ use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::settings::RenderSettings;
 use crate::render::targets::Targets;
 
+/// The resolve pass's one group, binding by binding as
+/// `shaders/resolve.wgsl` declares it.
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 2] = [
+    uniform_entry(0, wgpu::ShaderStages::FRAGMENT),
+    read_only_storage_entry(1, wgpu::ShaderStages::FRAGMENT),
+];
+
 pub struct ResolvePass {
     pipeline: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
@@ -23,13 +30,12 @@ impl ResolvePass {
     /// A resolve pass drawing into targets of `format`.
     pub fn new(gpu: &Gpu, format: wgpu::TextureFormat) -> Result<ResolvePass, GpuError> {
         let module = shader::create_module(gpu, "resolve.wgsl")?;
-        let f = wgpu::ShaderStages::FRAGMENT;
         gpu.scoped(|| {
             let layout = gpu
                 .device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                     label: Some("resolve bind group layout"),
-                    entries: &[uniform_entry(0, f), read_only_storage_entry(1, f)],
+                    entries: &PASS_LAYOUT,
                 });
             let pipeline_layout =
                 gpu.device

@@ -1,11 +1,19 @@
 //! The scene on the GPU: one vertex and index buffer holding every base
 //! shape's triangles, per-instance matrices sorted by shape (so each shape is
-//! one instanced draw), materials and lights.
+//! one instanced draw), materials and lights, the ray tracer's BVHs, shapes
+//! and CSG programs, and the base-colour maps.
+//!
+//! Also the scene's bind group, group [`SCENE_GROUP`] of every pass that
+//! reads the scene (raster, trace, ray batch, accumulate): its layout is
+//! [`SCENE_LAYOUT`], the twin of `shaders/lib/scene_bindings.wgsl`, and
+//! [`SceneBuffers::bind_group`] is built once per upload and shared by the
+//! passes; each pass's own resources are in group [`PASS_GROUP`].
 
 use glam::Mat4;
 use wgpu::util::DeviceExt;
 
 use crate::accel::SceneAccel;
+use crate::gpu::layout::{buffer_entries, map_array_entry, read_only_storage_entry, sampler_entry};
 use crate::gpu::twins::{
     GpuInstance, GpuLight, GpuMaterial, Vertex, MAX_TOON_BANDS, NO_TEXTURE, SHADING_BLINN_PHONG,
     SHADING_TOON,
@@ -15,6 +23,45 @@ use crate::render::textures::{scene_uses_textures, SceneTextures};
 use crate::scene::{
     tessellate, Light, Material, Pattern, Scene, ShadingModel, Shape, TextureFilter,
 };
+
+/// The scene's group in every pass that reads it.
+pub const SCENE_GROUP: u32 = 0;
+/// A pass's own resources (frame uniforms, targets, its outputs).
+pub const PASS_GROUP: u32 = 1;
+
+/// The stages that see the scene: the raster pass's vertex and fragment
+/// shaders and the compute passes.
+const SCENE_VISIBILITY: wgpu::ShaderStages =
+    wgpu::ShaderStages::VERTEX_FRAGMENT.union(wgpu::ShaderStages::COMPUTE);
+
+/// The scene's bind group layout, binding by binding as
+/// `shaders/lib/scene_bindings.wgsl` declares it.
+pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 13] = [
+    read_only_storage_entry(0, SCENE_VISIBILITY), // instances
+    read_only_storage_entry(1, SCENE_VISIBILITY), // materials
+    read_only_storage_entry(2, SCENE_VISIBILITY), // lights
+    read_only_storage_entry(3, SCENE_VISIBILITY), // shapes
+    read_only_storage_entry(4, SCENE_VISIBILITY), // nodes
+    read_only_storage_entry(5, SCENE_VISIBILITY), // triangles
+    read_only_storage_entry(6, SCENE_VISIBILITY), // tlas_items
+    read_only_storage_entry(7, SCENE_VISIBILITY), // csg_ops
+    read_only_storage_entry(8, SCENE_VISIBILITY), // csg_leaves
+    read_only_storage_entry(9, SCENE_VISIBILITY), // triangle_maps
+    map_array_entry(10, SCENE_VISIBILITY),        // base_color_maps
+    sampler_entry(11, SCENE_VISIBILITY),          // map_linear
+    sampler_entry(12, SCENE_VISIBILITY),          // map_nearest
+];
+
+/// The scene's bind group layout object. wgpu pools layouts by their
+/// entries, so every pass's pipeline and every scene's bind group get the
+/// one same layout from here.
+pub fn scene_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+    gpu.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("scene bind group layout"),
+            entries: &SCENE_LAYOUT,
+        })
+}
 
 /// Which triangles a draw may skip. Closed analytic shapes are drawn with
 /// back faces culled (front faces when the instance mirrors, which flips the
@@ -71,6 +118,9 @@ pub struct SceneBuffers {
     /// Whether any material has an image or a pattern: passes compile
     /// their texture code in only then (override `TEXTURES_ENABLED`).
     pub uses_textures: bool,
+    /// Group [`SCENE_GROUP`] of every pass that reads the scene
+    /// ([`SCENE_LAYOUT`]), built once at upload.
+    pub bind_group: wgpu::BindGroup,
 }
 
 /// The GPU form of a material; `textures` gives its image's array layer.
@@ -400,43 +450,74 @@ impl SceneBuffers {
             check_limit(what, bytes as u64, binding_limit)?;
         }
 
-        gpu.scoped(|| SceneBuffers {
-            shapes: storage_buffer(gpu, "scene shapes", &shapes),
-            nodes: storage_buffer(gpu, "scene BVH nodes", &accel.nodes),
-            triangles: storage_buffer(gpu, "scene triangles", &triangles),
-            tlas_items: storage_buffer(gpu, "scene top-level items", &tlas_items),
-            world_bounds: scene.bounds(),
-            has_motion: scene
-                .instances
-                .iter()
-                .any(|i| i.world_from_object_end.is_some()),
-            csg_ops: storage_buffer(gpu, "scene CSG programs", &csg_ops),
-            csg_leaves: storage_buffer(gpu, "scene CSG leaves", &csg_leaves),
-            triangle_maps: storage_buffer(gpu, "scene triangle maps", &triangle_maps),
-            accel,
-            vertices: gpu
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("scene vertices"),
-                    contents: bytemuck::cast_slice(&vertices),
-                    usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
-                }),
-            indices: gpu
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("scene indices"),
-                    contents: bytemuck::cast_slice(&indices),
-                    usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
-                }),
-            instances: storage_buffer(gpu, "scene instances", &gpu_instances),
-            materials: storage_buffer(gpu, "scene materials", &materials),
-            lights: storage_buffer(gpu, "scene lights", &lights),
-            light_count,
-            textures,
-            uses_textures: scene_uses_textures(scene),
-            draws,
-            instance_order: order,
-            triangle_count,
+        gpu.scoped(|| {
+            let instances = storage_buffer(gpu, "scene instances", &gpu_instances);
+            let materials = storage_buffer(gpu, "scene materials", &materials);
+            let lights = storage_buffer(gpu, "scene lights", &lights);
+            let shapes = storage_buffer(gpu, "scene shapes", &shapes);
+            let nodes = storage_buffer(gpu, "scene BVH nodes", &accel.nodes);
+            let triangles = storage_buffer(gpu, "scene triangles", &triangles);
+            let tlas_items = storage_buffer(gpu, "scene top-level items", &tlas_items);
+            let csg_ops = storage_buffer(gpu, "scene CSG programs", &csg_ops);
+            let csg_leaves = storage_buffer(gpu, "scene CSG leaves", &csg_leaves);
+            let triangle_maps = storage_buffer(gpu, "scene triangle maps", &triangle_maps);
+            let mut entries = buffer_entries(&[
+                &instances,
+                &materials,
+                &lights,
+                &shapes,
+                &nodes,
+                &triangles,
+                &tlas_items,
+                &csg_ops,
+                &csg_leaves,
+                &triangle_maps,
+            ]);
+            entries.extend(textures.bind_group_entries(10));
+            let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("scene bind group"),
+                layout: &scene_layout(gpu),
+                entries: &entries,
+            });
+            SceneBuffers {
+                bind_group,
+                shapes,
+                nodes,
+                triangles,
+                tlas_items,
+                world_bounds: scene.bounds(),
+                has_motion: scene
+                    .instances
+                    .iter()
+                    .any(|i| i.world_from_object_end.is_some()),
+                csg_ops,
+                csg_leaves,
+                triangle_maps,
+                accel,
+                vertices: gpu
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("scene vertices"),
+                        contents: bytemuck::cast_slice(&vertices),
+                        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+                    }),
+                indices: gpu
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("scene indices"),
+                        contents: bytemuck::cast_slice(&indices),
+                        usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+                    }),
+                instances,
+                materials,
+                lights,
+                light_count,
+                textures,
+                uses_textures: scene_uses_textures(scene),
+                draws,
+                instance_order: order,
+                triangle_count,
+            }
         })
     }
 }

@@ -181,11 +181,10 @@ impl SceneTextures {
         })
     }
 
-    /// Map word of each of `mesh`'s own textures: its array layer with its
-    /// sampler's bits (see [`MAP_LAYER_MASK`]).
     /// Bind-group entries for the map array and its linear and nearest
-    /// samplers at bindings `first`, `first + 1` and `first + 2` (the layout
-    /// side is `map_array_entry` and two `sampler_entry`s).
+    /// samplers at bindings `first`, `first + 1` and `first + 2`: the
+    /// scene's group ([`crate::render::scene_buffers::SCENE_LAYOUT`]) is
+    /// their one user.
     pub fn bind_group_entries(&self, first: u32) -> [wgpu::BindGroupEntry<'_>; 3] {
         [
             wgpu::BindGroupEntry {
@@ -203,6 +202,8 @@ impl SceneTextures {
         ]
     }
 
+    /// Map word of each of `mesh`'s own textures: its array layer with its
+    /// sampler's bits (see [`MAP_LAYER_MASK`]).
     pub fn mesh_layers(&self, mesh: &crate::scene::Mesh) -> Vec<u32> {
         mesh.textures
             .iter()

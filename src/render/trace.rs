@@ -2,23 +2,42 @@
 //! raster pass, traced through the two-level BVH (analytic shapes only in
 //! hybrid mode, composited against the raster depth; everything in raytrace
 //! mode), then shadow rays and mirror reflections against the whole scene.
+//!
+//! Bindings: group 0 is the scene's shared group
+//! ([`crate::render::scene_buffers::SCENE_LAYOUT`]); group 1 is
+//! [`PASS_LAYOUT`] (frame uniforms, the overflow counter, the G-buffers);
+//! the driver variant adds the driver's structures as group 2.
 
 use std::collections::HashMap;
 
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{
-    buffer_entries, map_array_entry, read_only_storage_entry, read_write_storage_entry,
-    sampler_entry, storage_texture_entry, texture_entry, uniform_entry,
+    read_write_storage_entry, storage_texture_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::shader::Traversal;
 use crate::gpu::twins::TRACE_WORKGROUP;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
-use crate::render::scene_buffers::SceneBuffers;
+use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 use crate::render::RenderSettings;
 use crate::scene::{Light, Material, Scene};
+
+const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
+
+/// Group 1 of the trace pass, binding by binding as `shaders/trace.wgsl`
+/// declares it.
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 8] = [
+    uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
+    read_write_storage_entry(1),                   // stats
+    texture_entry(2, FLOAT),                       // raster_normal_depth
+    texture_entry(3, wgpu::TextureSampleType::Uint), // raster_id
+    storage_texture_entry(4, COLOR_FORMAT),        // out_color
+    storage_texture_entry(5, NORMAL_DEPTH_FORMAT), // out_normal_depth
+    storage_texture_entry(6, ID_FORMAT),           // out_id
+    texture_entry(7, FLOAT),                       // raster_albedo
+];
 
 pub struct TracePass {
     /// Pipeline variants, each built the first time a scene needs it and
@@ -31,6 +50,7 @@ pub struct TracePass {
     pipeline_layout: wgpu::PipelineLayout,
     scene_layout: wgpu::BindGroupLayout,
     target_layout: wgpu::BindGroupLayout,
+    /// The scene's shared group and this pass's own.
     bind_groups: Option<(wgpu::BindGroup, wgpu::BindGroup)>,
     /// Counters the shader bumps: [0] = pixels that ran out of traversal steps.
     stats: wgpu::Buffer,
@@ -121,45 +141,13 @@ fn trace_pipeline(
 impl TracePass {
     pub fn new(gpu: &Gpu) -> Result<TracePass, GpuError> {
         let module = shader::create_module(gpu, "trace.wgsl")?;
-        let c = wgpu::ShaderStages::COMPUTE;
         gpu.scoped(|| {
-            let scene_layout =
-                gpu.device
-                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some("trace scene layout"),
-                        entries: &[
-                            uniform_entry(0, c),
-                            read_only_storage_entry(1, c),
-                            read_only_storage_entry(2, c),
-                            read_only_storage_entry(3, c),
-                            read_only_storage_entry(4, c),
-                            read_only_storage_entry(5, c),
-                            read_only_storage_entry(6, c),
-                            read_only_storage_entry(7, c),
-                            read_write_storage_entry(8),
-                            // CSG programs and leaves (shaders/lib/csg.wgsl).
-                            read_only_storage_entry(9, c),
-                            read_only_storage_entry(10, c),
-                            // Base-colour maps (shaders/lib/texture.wgsl).
-                            map_array_entry(11, c),
-                            sampler_entry(12, c),
-                            sampler_entry(13, c),
-                            read_only_storage_entry(14, c),
-                        ],
-                    });
-            let float = wgpu::TextureSampleType::Float { filterable: false };
+            let scene_layout = scene_layout(gpu);
             let target_layout =
                 gpu.device
                     .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some("trace target layout"),
-                        entries: &[
-                            texture_entry(0, float),
-                            texture_entry(1, wgpu::TextureSampleType::Uint),
-                            storage_texture_entry(2, COLOR_FORMAT),
-                            storage_texture_entry(3, NORMAL_DEPTH_FORMAT),
-                            storage_texture_entry(4, ID_FORMAT),
-                            texture_entry(5, float),
-                        ],
+                        label: Some("trace pass layout"),
+                        entries: &PASS_LAYOUT,
                     });
             let layout = gpu
                 .device
@@ -250,30 +238,6 @@ impl TracePass {
             self.driver_group = None;
             return Err(e);
         }
-        let buffers = [
-            frame,
-            &scene.instances,
-            &scene.materials,
-            &scene.lights,
-            &scene.shapes,
-            &scene.nodes,
-            &scene.triangles,
-            &scene.tlas_items,
-            &self.stats,
-            &scene.csg_ops,
-            &scene.csg_leaves,
-        ];
-        let mut entries = buffer_entries(&buffers);
-        entries.extend(scene.textures.bind_group_entries(11));
-        entries.push(wgpu::BindGroupEntry {
-            binding: 14,
-            resource: scene.triangle_maps.as_entire_binding(),
-        });
-        let scene_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("trace scene bind group"),
-            layout: &self.scene_layout,
-            entries: &entries,
-        });
         let views = [
             &targets.raster.normal_depth,
             &targets.raster.id,
@@ -283,20 +247,31 @@ impl TracePass {
             &targets.raster_albedo,
         ]
         .map(|t| t.create_view(&Default::default()));
-        let entries: Vec<wgpu::BindGroupEntry> = views
-            .iter()
-            .enumerate()
-            .map(|(i, v)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: wgpu::BindingResource::TextureView(v),
-            })
-            .collect();
+        let mut entries = vec![
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: self.stats.as_entire_binding(),
+            },
+        ];
+        entries.extend(
+            views
+                .iter()
+                .zip(2..)
+                .map(|(v, binding)| wgpu::BindGroupEntry {
+                    binding,
+                    resource: wgpu::BindingResource::TextureView(v),
+                }),
+        );
         let target_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("trace target bind group"),
+            label: Some("trace pass bind group"),
             layout: &self.target_layout,
             entries: &entries,
         });
-        self.bind_groups = Some((scene_group, target_group));
+        self.bind_groups = Some((scene.bind_group.clone(), target_group));
         Ok(())
     }
 
@@ -326,10 +301,10 @@ impl TracePass {
             return;
         };
         pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, scene_group, &[]);
-        pass.set_bind_group(1, target_group, &[]);
+        pass.set_bind_group(SCENE_GROUP, scene_group, &[]);
+        pass.set_bind_group(PASS_GROUP, target_group, &[]);
         if let Some(group) = &self.driver_group {
-            pass.set_bind_group(2, group, &[]);
+            pass.set_bind_group(driver_accel::DRIVER_GROUP, group, &[]);
         }
         pass.dispatch_workgroups(
             targets.width.div_ceil(TRACE_WORKGROUP),

@@ -26,6 +26,9 @@ use glam::{Mat4, Vec3};
 
 use super::{Mesh, Shape};
 
+// The CSG limits' one home: `accel::csg` (CPU) uses them from here, and
+// WGSL gets them from the header `gpu::shader::limits_header` generates.
+
 /// Intervals one stack entry of the CSG evaluator holds (GPU and CPU).
 pub const CSG_MAX_INTERVALS: u32 = 8;
 /// Stack entries of the CSG evaluator; a tree needing more is refused.

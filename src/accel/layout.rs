@@ -1,0 +1,102 @@
+//! Plain Pod layouts of what `accel` builds for the GPU: BVH nodes, mesh
+//! triangles, base shapes, CSG programs and leaves, their kind and opcode
+//! constants, and the traversal limits both the CPU reference and the WGSL
+//! traversal obey. No wgpu here: `gpu::twins` re-exports all of it, and
+//! `tests/shaders.rs` checks every size, offset and constant against WGSL.
+
+use bytemuck::{Pod, Zeroable};
+
+/// Shape kinds of [`GpuShape::kind`].
+pub const SHAPE_SPHERE: u32 = 0;
+pub const SHAPE_BOX: u32 = 1;
+pub const SHAPE_CYLINDER: u32 = 2;
+pub const SHAPE_CONE: u32 = 3;
+pub const SHAPE_QUAD: u32 = 4;
+pub const SHAPE_DISK: u32 = 5;
+pub const SHAPE_MESH: u32 = 6;
+
+/// Entries of the traversal stack, shared by both levels (the bottom level
+/// continues above the top level's entries); deeper trees are refused.
+pub const TRAVERSAL_STACK: u32 = 64;
+/// Loop iterations one ray query may take before it gives up and reports
+/// overflow: well under lavapipe's silent cut at ~65,535 per invocation.
+pub const MAX_TRAVERSAL_STEPS: u32 = 12000;
+
+/// A node of a bounding volume hierarchy. A leaf has `count > 0` items
+/// starting at `left_or_first`; an inner node's children are nodes
+/// `left_or_first` and `left_or_first + 1`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct BvhNode {
+    pub bounds_min: [f32; 3],
+    pub left_or_first: u32,
+    pub bounds_max: [f32; 3],
+    pub count: u32,
+}
+
+/// A triangle of a mesh in object space, with its vertex normals; the w
+/// components carry the texture coordinates: `(p_k.w, n_k.w)` is corner
+/// k's (u, v).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuTriangle {
+    pub p0: [f32; 4],
+    pub p1: [f32; 4],
+    pub p2: [f32; 4],
+    pub n0: [f32; 4],
+    pub n1: [f32; 4],
+    pub n2: [f32; 4],
+}
+
+/// A base shape for the ray tracer: its kind, parameters (radius, half
+/// extents, height, ...) and, for meshes, the root of its bottom-level BVH.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuShape {
+    pub params: [f32; 4],
+    pub kind: u32,
+    pub blas_root: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+/// Shape kind of a CSG tree: `blas_root` is the first instruction of its
+/// postfix program in the CSG op buffer.
+pub const SHAPE_CSG: u32 = 7;
+/// CSG program instructions ([`GpuCsgOp::op`]).
+pub const CSG_OP_END: u32 = 0;
+pub const CSG_OP_LEAF: u32 = 1;
+pub const CSG_OP_UNION: u32 = 2;
+pub const CSG_OP_INTERSECTION: u32 = 3;
+pub const CSG_OP_DIFFERENCE: u32 = 4;
+/// [`GpuCsgLeaf::material`] of a leaf that uses the instance's material.
+pub const CSG_NO_MATERIAL: u32 = u32::MAX;
+
+/// One instruction of a CSG postfix program. `op` is a `CSG_OP_*`; for
+/// `CSG_OP_LEAF`, `arg` indexes the leaf buffer; for the set operations,
+/// `arg` is 1 when the operands were evaluated in swapped order (the first
+/// operand is on top of the stack).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GpuCsgOp {
+    pub op: u32,
+    pub arg: u32,
+}
+
+/// A CSG leaf: an analytic shape or a mesh (`blas_root`) placed in the CSG
+/// shape's object space, with an optional material.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuCsgLeaf {
+    /// Inverse of the leaf's transform: CSG space to leaf space.
+    pub leaf_from_csg: [[f32; 4]; 4],
+    /// Inverse transpose of the leaf's transform: leaf normals to CSG space.
+    pub csg_normal_from_leaf: [[f32; 4]; 4],
+    pub params: [f32; 4],
+    /// `SHAPE_*` (sphere, box, cylinder, cone or mesh).
+    pub kind: u32,
+    pub blas_root: u32,
+    /// Material id, or [`CSG_NO_MATERIAL`].
+    pub material: u32,
+    pub _pad: u32,
+}
