@@ -3,8 +3,8 @@
 //! leaf) and a top-level BVH over instances (world bounds of each transformed
 //! bottom level). Also the CPU reference traversal the tests compare the GPU
 //! against (one stack loop, [`traverse`], walks the top level, the meshes'
-//! bottom levels and CSG mesh leaves); it is never used for rendering. Imports scene, glam and the GPU
-//! twin structs (plain data).
+//! bottom levels and CSG mesh leaves); it is never used for rendering.
+//! Imports scene, glam and the GPU twin structs (plain data).
 
 pub mod bvh;
 pub mod csg;
