@@ -609,20 +609,7 @@ impl Renderer {
         let Some(buffer) = self.reproject.as_ref().and_then(|p| p.motion_buffer()) else {
             return Ok(None);
         };
-        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("motion vector readback"),
-            size: buffer.size(),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("motion vector copy"),
-            });
-        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &staging)?;
+        let bytes = readback::copy_and_read(gpu, buffer, buffer.size(), "motion vector readback")?;
         Ok(Some(bytemuck::cast_slice(&bytes).to_vec()))
     }
 
@@ -700,21 +687,8 @@ impl Renderer {
     /// number of samples it holds (w; after a moving frame, the count the
     /// reprojected history holds).
     pub fn read_accumulator(&self, gpu: &Gpu) -> Result<Vec<[f32; 4]>, GpuError> {
-        let size = self.targets.accum.size();
-        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("accumulation readback"),
-            size,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("accumulation copy"),
-            });
-        encoder.copy_buffer_to_buffer(&self.targets.accum, 0, &staging, 0, size);
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &staging)?;
+        let accum = &self.targets.accum;
+        let bytes = readback::copy_and_read(gpu, accum, accum.size(), "accumulation readback")?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
