@@ -27,8 +27,7 @@ use crate::gpu::twins::{
     FrameUniforms, ReprojectUniforms, TEMPORAL_REJECT_CLIP, TEMPORAL_REJECT_NONE,
 };
 use crate::gpu::{readback, Gpu, GpuError};
-use crate::sampling::{sample, Aperture, Sample};
-use crate::scene::ApertureShape;
+use crate::sampling::{Sample, SampleSchedule};
 use crate::scene::Scene;
 use accumulate::AccumulatePass;
 use driver_accel::DriverAccel;
@@ -366,27 +365,15 @@ impl Renderer {
         Ok(())
     }
 
-    /// Sample k's sub-pixel offset, lens point and shutter time.
-    pub fn sample_schedule(&self, k: u32) -> Sample {
-        let s = &self.settings;
-        let aperture = match self.scene.camera.aperture {
-            ApertureShape::Disk => Aperture::Disk,
-            ApertureShape::Square => Aperture::Square,
-            ApertureShape::Polygon {
-                blades,
-                rotation_deg,
-            } => Aperture::Polygon {
-                blades,
-                rotation: rotation_deg.to_radians(),
-            },
-        };
-        sample(s.pattern, aperture, k, s.spp, s.seed)
+    /// Which sample k is: the settings' schedule through the camera's aperture.
+    pub fn sample_schedule(&self) -> SampleSchedule {
+        self.settings.sample_schedule(&self.scene.camera)
     }
 
     /// The camera of sample `k`: at its shutter time, on its lens point, with
     /// its jittered and sheared projection.
     pub fn sample_camera(&self, k: u32) -> camera::SampleCamera {
-        self.camera_for(&self.sample_schedule(k))
+        self.camera_for(&self.sample_schedule().sample(k))
     }
 
     fn camera_for(&self, smp: &Sample) -> camera::SampleCamera {
@@ -436,7 +423,7 @@ impl Renderer {
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
-        let smp = self.sample_schedule(k);
+        let smp = self.sample_schedule().sample(k);
         let offset = smp.pixel_offset;
         let sc = self.camera_for(&smp);
         let (lo, hi) = self.buffers.world_bounds;
@@ -461,7 +448,7 @@ impl Renderer {
             sample_index: k,
             jitter_px: (offset - glam::Vec2::splat(0.5)).to_array(),
             max_outline_px: max_outline,
-            seed: s.seed,
+            seed: smp.seed,
             world_from_clip: world_from_clip.to_cols_array_2d(),
             mode: s.mode.to_gpu(),
             max_bounces: s.max_bounces,
@@ -503,7 +490,7 @@ impl Renderer {
         }
         let mut motion_time = None;
         if self.buffers.has_motion {
-            let time = self.sample_schedule(k).time;
+            let time = self.sample_schedule().sample(k).time;
             self.buffers.write_instances_at(gpu, &self.scene, time);
             motion_time = Some(time);
         }
