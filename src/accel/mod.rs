@@ -294,7 +294,8 @@ impl SceneAccel {
                         self.instances[instance as usize];
                     let o = object_from_world.transform_point3(origin);
                     let d = object_from_world.transform_vector3(dir);
-                    let (found, overflow) = self.intersect_shape(shape, o, d, t_min, *t_best, steps);
+                    let (found, overflow) =
+                        self.intersect_shape(shape, o, d, t_min, *t_best, steps);
                     if let Some((h, material)) = found {
                         *t_best = h.t;
                         let to_world = world_from_object.inverse().transpose();

@@ -10,10 +10,10 @@ pub mod metrics;
 pub mod sheet;
 pub mod text;
 
+pub use crate::view::{model_label, settings_label, ViewListError, ViewSpec, MAX_VIEWS};
 pub use metrics::{flip_mean, pair_metrics, psnr_rgba8, PairMetrics};
 pub use sheet::{contact_sheet, sheet_columns, LABEL_BAR_PX};
 pub use text::{draw_text, text_width};
-pub use crate::view::{model_label, settings_label, ViewListError, ViewSpec, MAX_VIEWS};
 
 use crate::capture::{CaptureError, Frame};
 use crate::gpu::Gpu;

@@ -61,4 +61,3 @@ pub fn text_width(size_px: f32, text: &str) -> f32 {
         .map(|c| scaled.h_advance(scaled.glyph_id(c)))
         .sum()
 }
-
