@@ -29,22 +29,10 @@ pub struct ExperimentArgs {
 
 const SPP: [u32; 9] = [1, 2, 4, 8, 16, 32, 64, 128, 256];
 
-/// A black card whose slanted edge crosses a white image.
+/// A black card whose slanted edge crosses a white image
+/// ([`celray::fixtures::slanted_card`], the scene the edge tests use).
 fn edge_scene(size: u32) -> anyhow::Result<Scene> {
-    let ron = format!(
-        r#"(version: 1,
-            camera: (eye: (0.0, 0.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: {size}, height: {size}),
-            ambient: (0.0, 0.0, 0.0), background: (1.0, 1.0, 1.0), lights: [],
-            materials: {{ "black": (base_color: (0.0, 0.0, 0.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong) }},
-            shapes: {{ "card": Plane(Quad(half_size: (1.0, 3.0))) }},
-            instances: [(shape: "card", material: "black", transform: (translate: (-0.75, 0.0, 0.0), rotate_deg: (90.0, 0.0, 17.0)))],
-        )"#
-    );
-    Ok(Scene::from_ron_str(
-        &ron,
-        "edge",
-        std::path::Path::new("."),
-    )?)
+    Ok(celray::fixtures::slanted_card(size, 3.0, 17.0)?)
 }
 
 /// A one-dimensional zone plate: black bars whose n-th edge sits at

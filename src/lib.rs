@@ -3,14 +3,19 @@
 //!
 //! Layers (see DESIGN.md): `scene` (CPU model and files) and `sampling` (pure
 //! math) at the bottom, `gpu` (wgpu plumbing), `render` (the passes),
-//! `capture` (headless images) and, behind the `app` feature, the window.
+//! `capture` (headless images), `view` (what one view of a comparison or a
+//! window slot shows) and `compare` (side-by-side comparison), and, behind
+//! the `app` feature, the window. `fixtures` holds small scenes with
+//! closed-form answers that tests and experiments share.
 
 pub mod accel;
 #[cfg(feature = "app")]
 pub mod app;
 pub mod capture;
 pub mod compare;
+pub mod fixtures;
 pub mod gpu;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod view;

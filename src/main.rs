@@ -10,7 +10,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use clap::{Args, Parser, Subcommand};
+use clap::builder::PossibleValue;
+use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use celray::capture::{self, OutputFormat};
 use celray::gpu::{AdapterChoice, Gpu};
@@ -90,28 +91,18 @@ struct RenderArgs {
     /// at most 2^37). Ctrl+C stops early and writes the samples so far.
     #[arg(long, default_value_t = 16)]
     spp: u32,
-    /// Seed of the sample pattern: same seed, same image.
-    #[arg(long, default_value_t = 0)]
-    seed: u32,
-    /// Sub-pixel pattern: regular, random, jittered or halton.
-    #[arg(long, default_value = "jittered")]
-    pattern: String,
+    #[command(flatten)]
+    image: ImageArgs,
     /// Override every material: blinn-phong, toon (4 bands) or toon:N.
     #[arg(long)]
     shading: Option<String>,
-    /// How primary visibility is found: raster, hybrid or raytrace.
-    #[arg(long, default_value = "hybrid")]
-    mode: String,
+    /// How primary visibility is found.
+    #[arg(long, value_enum, default_value_t = RenderMode::Hybrid)]
+    mode: RenderMode,
     /// Mirror reflection bounces after the primary hit (hybrid, raytrace;
     /// at most 16).
     #[arg(long, default_value_t = 3)]
     max_bounces: u32,
-    /// Tone mapping: clamp or reinhard.
-    #[arg(long, default_value = "clamp")]
-    tone_map: String,
-    /// Change one scene value, e.g. --set camera.fov_y_deg=30 (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    sets: Vec<String>,
     /// A scripted camera path (.ron): render frames 0..=K of it, one sample
     /// per frame as the app does, and write frame K (needs --frame).
     #[arg(long, value_name = "PATH", requires = "frame")]
@@ -129,24 +120,72 @@ struct RenderArgs {
     quiet: bool,
 }
 
-/// Image settings shared by `compare` and `view`.
+/// Options shared by `render`, `compare` and `view` (each has its own
+/// `--spp`, whose default and meaning differ).
 #[derive(Args)]
 struct ImageArgs {
-    /// Samples per pixel to accumulate (1 to 65536).
-    #[arg(long, default_value_t = 16)]
-    spp: u32,
     /// Seed of the sample pattern: same seed, same image.
     #[arg(long, default_value_t = 0)]
     seed: u32,
-    /// Sub-pixel pattern: regular, random, jittered or halton.
-    #[arg(long, default_value = "jittered")]
-    pattern: String,
-    /// Tone mapping: clamp or reinhard.
-    #[arg(long, default_value = "clamp")]
-    tone_map: String,
+    /// Sub-pixel pattern.
+    #[arg(long, value_enum, default_value_t = PatternArg(PixelPattern::Jittered))]
+    pattern: PatternArg,
+    /// Tone mapping.
+    #[arg(long, value_enum, default_value_t = ToneMap::Clamp)]
+    tone_map: ToneMap,
     /// Change one scene value, e.g. --set camera.fov_y_deg=30 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     sets: Vec<String>,
+}
+
+impl ImageArgs {
+    /// `settings` with this seed, pattern and tone mapping.
+    fn apply(&self, settings: RenderSettings) -> RenderSettings {
+        RenderSettings {
+            seed: self.seed,
+            pattern: self.pattern.0,
+            tone_map: self.tone_map,
+            ..settings
+        }
+    }
+}
+
+/// clap's view of [`PixelPattern`], whose names live in `sampling` (kept
+/// free of clap): the possible values are `PixelPattern::ALL` by
+/// `PixelPattern::name`.
+#[derive(Clone, Copy)]
+struct PatternArg(PixelPattern);
+
+/// Every pattern, wrapped for clap, in `PixelPattern::ALL`'s order.
+const PATTERN_ARGS: [PatternArg; PixelPattern::ALL.len()] = {
+    let mut out = [PatternArg(PixelPattern::ALL[0]); PixelPattern::ALL.len()];
+    let mut i = 0;
+    while i < out.len() {
+        out[i] = PatternArg(PixelPattern::ALL[i]);
+        i += 1;
+    }
+    out
+};
+
+impl ValueEnum for PatternArg {
+    fn value_variants<'a>() -> &'a [Self] {
+        &PATTERN_ARGS
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(PossibleValue::new(self.0.name()))
+    }
+}
+
+/// `"a, b or c"`: the names of every value of a settings enum, for messages
+/// about flags parsed after clap (exit status 1 rather than clap's 2).
+fn one_of(names: impl IntoIterator<Item = &'static str>) -> String {
+    let names: Vec<&str> = names.into_iter().collect();
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+        Some((last, _)) => last.to_string(),
+        None => String::new(),
+    }
 }
 
 #[derive(Args)]
@@ -166,6 +205,9 @@ struct CompareArgs {
     /// Height of each view in pixels (default: the scene camera's).
     #[arg(long)]
     height: Option<u32>,
+    /// Samples per pixel to accumulate (1 to 65536).
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
     #[command(flatten)]
     image: ImageArgs,
     /// Print the report as JSON on stdout.
@@ -194,18 +236,8 @@ struct ViewArgs {
     /// Sample target of the progressive display (1 to 65536).
     #[arg(long, default_value_t = 64)]
     spp: u32,
-    /// Seed of the sample pattern.
-    #[arg(long, default_value_t = 0)]
-    seed: u32,
-    /// Sub-pixel pattern: regular, random, jittered or halton.
-    #[arg(long, default_value = "jittered")]
-    pattern: String,
-    /// Tone mapping: clamp or reinhard.
-    #[arg(long, default_value = "clamp")]
-    tone_map: String,
-    /// Change one scene value, e.g. --set camera.fov_y_deg=30 (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    sets: Vec<String>,
+    #[command(flatten)]
+    image: ImageArgs,
     /// Start with uncapped frames (vsync off).
     #[arg(long)]
     no_vsync: bool,
@@ -325,8 +357,13 @@ fn adapter_choice(flag: &Option<String>) -> AdapterChoice {
 }
 
 fn run(cli: Cli) -> Result<()> {
-    let accel = AccelChoice::parse(&cli.accel)
-        .with_context(|| format!("--accel {:?}: expected auto, software or driver", cli.accel))?;
+    let accel = AccelChoice::parse(&cli.accel).with_context(|| {
+        format!(
+            "--accel {:?}: expected {}",
+            cli.accel,
+            one_of(AccelChoice::ALL.map(AccelChoice::name))
+        )
+    })?;
     let Some(command) = cli.command else {
         #[cfg(feature = "app")]
         {
@@ -399,16 +436,11 @@ fn render(args: RenderArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Resu
         }
     }
     let mut scene = load_scene(args.scene.as_deref())?;
-    for set in &args.sets {
-        let (key, value) = set
-            .split_once('=')
-            .with_context(|| format!("--set {set:?}: expected KEY=VALUE"))?;
-        scene.apply_override(key.trim(), value.trim())?;
-    }
+    apply_sets(&mut scene, &args.image.sets)?;
     if let Some(model) = &args.shading {
         scene.override_shading(&parse_shading_model(model)?);
     }
-    let mut settings = RenderSettings::for_camera(&scene.camera);
+    let mut settings = args.image.apply(RenderSettings::for_camera(&scene.camera));
     settings.width = args.width.unwrap_or(settings.width);
     settings.height = args.height.unwrap_or(settings.height);
     check_counts(settings.width, settings.height, args.spp)?;
@@ -419,23 +451,9 @@ fn render(args: RenderArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Resu
         );
     }
     settings.spp = args.spp;
-    settings.seed = args.seed;
-    settings.pattern = PixelPattern::parse(&args.pattern).with_context(|| {
-        format!(
-            "--pattern {:?}: expected regular, random, jittered or halton",
-            args.pattern
-        )
-    })?;
-    settings.mode = RenderMode::parse(&args.mode).with_context(|| {
-        format!(
-            "--mode {:?}: expected raster, hybrid or raytrace",
-            args.mode
-        )
-    })?;
+    settings.mode = args.mode;
     settings.max_bounces = args.max_bounces;
     settings.accel = accel;
-    settings.tone_map = ToneMap::parse(&args.tone_map)
-        .with_context(|| format!("--tone-map {:?}: expected clamp or reinhard", args.tone_map))?;
     settings.temporal = parse_temporal(&args.temporal)?;
     let path = match &args.camera_path {
         Some(p) => {
@@ -605,8 +623,12 @@ impl EtaNote {
 }
 
 fn parse_temporal(text: &str) -> Result<Temporal> {
-    Temporal::parse(text)
-        .with_context(|| format!("--temporal {text:?}: expected off, reproject or blend"))
+    Temporal::parse(text).with_context(|| {
+        format!(
+            "--temporal {text:?}: expected {}",
+            one_of(Temporal::ALL.map(Temporal::name))
+        )
+    })
 }
 
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -627,32 +649,20 @@ fn apply_sets(scene: &mut Scene, sets: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// Settings from the shared flags, at `width` x `height`.
-fn image_settings(
-    width: u32,
-    height: u32,
-    spp: u32,
-    seed: u32,
-    pattern: &str,
-    tone_map: &str,
-) -> Result<RenderSettings> {
+/// Settings from the shared flags, at `width` x `height` and `spp`.
+fn image_settings(width: u32, height: u32, spp: u32, image: &ImageArgs) -> Result<RenderSettings> {
     check_counts(width, height, spp)?;
-    Ok(RenderSettings {
+    Ok(image.apply(RenderSettings {
         width,
         height,
         spp,
-        seed,
-        pattern: PixelPattern::parse(pattern).with_context(|| {
-            format!("--pattern {pattern:?}: expected regular, random, jittered or halton")
-        })?,
-        tone_map: ToneMap::parse(tone_map)
-            .with_context(|| format!("--tone-map {tone_map:?}: expected clamp or reinhard"))?,
         ..RenderSettings::default()
-    })
+    }))
 }
 
 fn compare(args: CompareArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<()> {
-    use celray::compare::{Comparison, ViewSpec};
+    use celray::compare::Comparison;
+    use celray::view::ViewSpec;
     if OutputFormat::from_path(&args.output)? != OutputFormat::Png {
         bail!(
             "--output {}: the contact sheet is a .png file",
@@ -670,14 +680,11 @@ fn compare(args: CompareArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Re
     let views = ViewSpec::parse_list(&args.views)?;
     let mut scene = load_scene(args.scene.as_deref())?;
     apply_sets(&mut scene, &args.image.sets)?;
-    let i = &args.image;
     let settings = image_settings(
         args.width.unwrap_or(scene.camera.width),
         args.height.unwrap_or(scene.camera.height),
-        i.spp,
-        i.seed,
-        &i.pattern,
-        &i.tone_map,
+        args.spp,
+        &args.image,
     )?;
     let settings = RenderSettings { accel, ..settings };
     let gpu = Gpu::new_headless(adapter)?;
@@ -706,7 +713,7 @@ fn compare(args: CompareArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Re
 #[cfg(feature = "app")]
 fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<()> {
     use celray::app::{self, Layout, ViewOptions};
-    use celray::compare::ViewSpec;
+    use celray::view::ViewSpec;
     let views = ViewSpec::parse_list(&args.views)?;
     if views.len() > 4 {
         bail!(
@@ -739,14 +746,12 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
         );
     }
     let mut scene = load_scene(args.scene.as_deref())?;
-    apply_sets(&mut scene, &args.sets)?;
+    apply_sets(&mut scene, &args.image.sets)?;
     let settings = image_settings(
         scene.camera.width,
         scene.camera.height,
         args.spp,
-        args.seed,
-        &args.pattern,
-        &args.tone_map,
+        &args.image,
     )?;
     let mut settings = RenderSettings { accel, ..settings };
     settings.temporal = parse_temporal(&args.temporal)?;

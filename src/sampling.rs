@@ -1,6 +1,8 @@
-//! Sample patterns and the sample schedule: sample k of a frame gets a
-//! sub-pixel offset that depends only on (k, sample count, seed), so the same
-//! settings always give the same image. Pure math, no GPU.
+//! Sample patterns and the [`SampleSchedule`]: sample k of a frame gets a
+//! sub-pixel offset, a lens point and a shutter time that depend only on
+//! (k, sample count, seed), so the same settings always give the same image.
+//! The pattern's names (`PixelPattern::name`) live here too. Pure math, no
+//! GPU, no clap.
 
 use glam::Vec2;
 
@@ -19,6 +21,7 @@ pub enum PixelPattern {
 }
 
 impl PixelPattern {
+    /// Every pattern, in the order menus and `--help` list them.
     pub const ALL: [PixelPattern; 4] = [
         PixelPattern::Regular,
         PixelPattern::Random,
@@ -26,6 +29,7 @@ impl PixelPattern {
         PixelPattern::Halton,
     ];
 
+    /// The word the CLI, the panel and reports use.
     pub fn name(self) -> &'static str {
         match self {
             PixelPattern::Regular => "regular",
@@ -35,6 +39,7 @@ impl PixelPattern {
         }
     }
 
+    /// The pattern called `text`, if any.
     pub fn parse(text: &str) -> Option<PixelPattern> {
         Self::ALL.into_iter().find(|p| p.name() == text)
     }
@@ -93,7 +98,8 @@ pub fn pixel_offset(pattern: PixelPattern, k: u32, spp: u32, seed: u32) -> Vec2 
     }
 }
 
-/// What sample k of a frame uses, beyond its sub-pixel offset.
+/// What sample k of a frame uses: its sub-pixel offset, lens point,
+/// shutter time and the seed its per-pixel random numbers are drawn with.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
     /// Sub-pixel position in [0, 1)^2 (0.5, 0.5 is the pixel centre).
@@ -102,6 +108,9 @@ pub struct Sample {
     pub lens: Vec2,
     /// Fraction of the shutter interval in [0, 1).
     pub time: f32,
+    /// Seed of the shaders' random numbers for this sample (hashed with
+    /// the pixel and the sample index): the schedule's seed.
+    pub seed: u32,
 }
 
 /// The aperture's shape in unit coordinates (radius 1).
@@ -116,10 +125,29 @@ pub enum Aperture {
     },
 }
 
-/// Sample k of `spp` for `seed`: every dimension is drawn from the same
-/// pattern, each with its own seed, so pixel offset, lens point and time are
-/// stratified (for jittered, Halton) and uncorrelated with each other.
-pub fn sample(pattern: PixelPattern, aperture: Aperture, k: u32, spp: u32, seed: u32) -> Sample {
+/// Which sample k of a frame is: sample k -> {pixel jitter, lens point,
+/// shutter time, seed}, for one pattern, aperture, sample count and seed
+/// (built from the render settings and the camera by
+/// `RenderSettings::sample_schedule`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SampleSchedule {
+    pub pattern: PixelPattern,
+    pub aperture: Aperture,
+    /// Samples per pixel the frame converges to.
+    pub spp: u32,
+    pub seed: u32,
+}
+
+impl SampleSchedule {
+    /// Sample `k`: every dimension is drawn from the same pattern, each
+    /// with its own seed, so pixel offset, lens point and time are
+    /// stratified (for jittered, Halton) and uncorrelated with each other.
+    pub fn sample(&self, k: u32) -> Sample {
+        sample(self.pattern, self.aperture, k, self.spp, self.seed)
+    }
+}
+
+fn sample(pattern: PixelPattern, aperture: Aperture, k: u32, spp: u32, seed: u32) -> Sample {
     let lens_square = pixel_offset(pattern, k, spp, seed ^ 0x5bd1_e995);
     let time = match pattern {
         PixelPattern::Regular => {
@@ -137,6 +165,7 @@ pub fn sample(pattern: PixelPattern, aperture: Aperture, k: u32, spp: u32, seed:
         pixel_offset: pixel_offset(pattern, k, spp, seed),
         lens: map_to_aperture(lens_square, aperture),
         time,
+        seed,
     }
 }
 
@@ -258,12 +287,14 @@ mod tests {
         // hexagon of circumradius 1 it is 5/12 (polar moment / area).
         // 4096 jittered samples: standard errors below 0.005; 0.02 is safe.
         let mean_r2 = |aperture| {
+            let schedule = SampleSchedule {
+                pattern: PixelPattern::Jittered,
+                aperture,
+                spp: 4096,
+                seed: 9,
+            };
             (0..4096)
-                .map(|k| {
-                    sample(PixelPattern::Jittered, aperture, k, 4096, 9)
-                        .lens
-                        .length_squared()
-                })
+                .map(|k| schedule.sample(k).lens.length_squared())
                 .sum::<f32>()
                 / 4096.0
         };
@@ -277,17 +308,27 @@ mod tests {
                 < 0.02
         );
         assert!((mean_r2(Aperture::Square) - 2.0 / 3.0).abs() < 0.02);
+        let random = SampleSchedule {
+            pattern: PixelPattern::Random,
+            aperture: Aperture::Disk,
+            spp: 512,
+            seed: 1,
+        };
         for k in 0..512 {
-            let p = sample(PixelPattern::Random, Aperture::Disk, k, 512, 1).lens;
+            let p = random.sample(k).lens;
             assert!(p.length() <= 1.0 + 1e-6);
         }
     }
 
     #[test]
     fn times_are_stratified_over_the_shutter() {
-        let mut t: Vec<f32> = (0..64)
-            .map(|k| sample(PixelPattern::Jittered, Aperture::Disk, k, 64, 5).time)
-            .collect();
+        let schedule = SampleSchedule {
+            pattern: PixelPattern::Jittered,
+            aperture: Aperture::Disk,
+            spp: 64,
+            seed: 5,
+        };
+        let mut t: Vec<f32> = (0..64).map(|k| schedule.sample(k).time).collect();
         t.sort_by(f32::total_cmp);
         for (i, v) in t.iter().enumerate() {
             assert!(

@@ -589,50 +589,12 @@ fn csg_solid_appears_in_a_mirror_where_the_geometry_says() {
                         (shape: "holed", material: "red", transform: (translate: (0.0, 1.1, 0.0)))],
         )"#,
     );
-    let (w, h) = (scene.camera.width, scene.camera.height);
     let centre = DVec3::new(0.0, 1.1, 0.0);
-    for mode in [RenderMode::Hybrid, RenderMode::Raytrace] {
-        let r = rendered(&gpu, scene.clone(), settings(&scene, mode));
-        let img = r.read_srgb8(&gpu).unwrap();
-        let cam = r.sample_camera(0);
-        let (mut want, mut got, mut direct_mask) = (Vec::new(), Vec::new(), Vec::new());
-        let mut reflected = 0;
-        for y in 0..h {
-            for x in 0..w {
-                let (o, d) = cam.pixel_ray((w, h), x, y);
-                let (o, d) = (o.as_dvec3(), d.as_dvec3());
-                let direct = meets_holed_sphere(o - centre, d);
-                let t = -o.y / d.y;
-                let mirror_hit = !direct && t > 0.0;
-                direct_mask.push(direct);
-                let in_reflection = mirror_hit && {
-                    let p = o + d * t;
-                    meets_holed_sphere(p - centre, DVec3::new(d.x, -d.y, d.z))
-                };
-                reflected += usize::from(in_reflection);
-                let rgb = rgb_at(&img, w, x, y);
-                want.push(in_reflection);
-                got.push(mirror_hit && rgb[0] > 200 && rgb[2] < 50);
-            }
-        }
-        let mut bad = mismatches_off_boundary(&got, &want, w, h);
-        bad.retain(|&(x, y)| interior(&direct_mask, w, h, x, y, 1));
-        assert!(
-            bad.is_empty(),
-            "{mode:?}: reflection differs from the mirrored CSG solid at {:?}",
-            &bad[..bad.len().min(5)]
-        );
-        assert!(
-            reflected > 200,
-            "the reflection should be visible ({reflected} px)"
-        );
-    }
+    assert_mirror_shows(&gpu, &scene, "mirrored CSG solid", |o, d| {
+        meets_holed_sphere(o - centre, d)
+    });
 }
 
-/// A mesh leaf that a ray crosses more than K = 8 times (five disjoint boxes
-/// in a row, one closed mesh: 10 crossings) is never silently truncated:
-/// the CPU reference reports an overflow, and the GPU paints those pixels
-/// magenta and counts them; rays that cross fewer times are fine.
 #[test]
 fn mesh_leaf_over_k_crossings_is_reported_not_truncated() {
     let gpu = gpu();

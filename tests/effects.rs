@@ -4,6 +4,7 @@
 
 mod common;
 
+use celray::fixtures::slanted_card;
 use celray::render::{RenderMode, RenderSettings};
 use celray::sampling::PixelPattern;
 use common::*;
@@ -86,15 +87,7 @@ fn lum(linear: &[f32], w: u32, x: u32, y: u32) -> f64 {
 #[test]
 fn edge_pixels_converge_to_their_covered_fraction() {
     let gpu = gpu();
-    let ron = r#"(version: 1,
-        camera: (eye: (0.0, 0.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 64, height: 64),
-        ambient: (0.0, 0.0, 0.0), background: (1.0, 1.0, 1.0),
-        lights: [],
-        materials: { "black": (base_color: (0.0, 0.0, 0.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong) },
-        shapes: { "card": Plane(Quad(half_size: (1.0, 1.0))) },
-        instances: [(shape: "card", material: "black", transform: (translate: (-0.75, 0.0, 0.0), rotate_deg: (90.0, 0.0, 20.0)))],
-    )"#;
-    let scene = scene(ron);
+    let scene = slanted_card(64, 1.0, 20.0).unwrap();
     let (w, h) = (64u32, 64u32);
     for mode in [RenderMode::Raster, RenderMode::Hybrid] {
         let settings = RenderSettings {
@@ -369,15 +362,7 @@ fn lens_and_motion_fields_parse_to_their_physical_meaning() {
 /// RMS error of edge pixels against their exact coverage, for a pattern
 /// and sample count (raster mode, 128 x 128, the slanted card edge).
 fn edge_rms_error(gpu: &celray::gpu::Gpu, pattern: PixelPattern, spp: u32, seed: u32) -> f64 {
-    let ron = r#"(version: 1,
-        camera: (eye: (0.0, 0.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 128, height: 128),
-        ambient: (0.0, 0.0, 0.0), background: (1.0, 1.0, 1.0),
-        lights: [],
-        materials: { "black": (base_color: (0.0, 0.0, 0.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong) },
-        shapes: { "card": Plane(Quad(half_size: (1.0, 3.0))) },
-        instances: [(shape: "card", material: "black", transform: (translate: (-0.75, 0.0, 0.0), rotate_deg: (90.0, 0.0, 17.0)))],
-    )"#;
-    let scene = scene(ron);
+    let scene = slanted_card(128, 3.0, 17.0).unwrap();
     let (w, h) = (128u32, 128u32);
     let settings = RenderSettings {
         mode: RenderMode::Raster,

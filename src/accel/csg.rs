@@ -11,16 +11,18 @@
 //! Leaves are evaluated over the whole line (t from -1e30 to 1e30), so
 //! whether the ray starts inside a leaf never matters; convex analytic leaves
 //! reuse the exact intersection functions twice (the entry, then the exit
-//! after it); mesh leaves collect every crossing through the mesh's BVH.
+//! after it); mesh leaves collect every crossing through the mesh's BVH
+//! (walked by the one traversal loop, [`super::traverse`]).
+
+use std::ops::ControlFlow;
 
 use glam::{Mat4, Vec3};
 
-use super::bvh::Aabb;
 use super::layout::{
     BvhNode, GpuCsgLeaf, GpuCsgOp, GpuTriangle, CSG_NO_MATERIAL, CSG_OP_DIFFERENCE, CSG_OP_END,
     CSG_OP_INTERSECTION, CSG_OP_LEAF, CSG_OP_UNION, MAX_TRAVERSAL_STEPS, SHAPE_MESH,
 };
-use super::{intersect, AccelError, TraceResult};
+use super::{intersect, traverse, AccelError, BoxRay, ChildOrder, Stopped};
 use crate::scene::{Csg, CsgNode, Mesh, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK};
 
 /// Leaves are intersected over (-CSG_FAR, CSG_FAR): the whole line.
@@ -383,33 +385,34 @@ fn mesh_crossings(
     d: Vec3,
     steps: &mut u32,
 ) -> Result<Vec<(f32, Vec3)>, CsgOverflow> {
-    let inv = d.recip();
     let mut hits: Vec<(f32, Vec3, bool)> = Vec::new();
-    let mut stack = vec![root];
-    while let Some(index) = stack.pop() {
-        take_step(steps)?;
-        let node = data.nodes[index as usize];
-        let b: Aabb = node.aabb();
-        if intersect::ray_box(o, inv, b.min, b.max, -CSG_FAR, CSG_FAR).is_none() {
-            continue;
-        }
-        if node.count == 0 {
-            stack.push(node.left_or_first + 1);
-            stack.push(node.left_or_first);
-            continue;
-        }
-        for k in node.left_or_first..node.left_or_first + node.count {
-            if let Some(h) =
-                intersect::triangle(o, d, &data.triangles[k as usize], -CSG_FAR, CSG_FAR)
-            {
-                if hits.len() >= CSG_MESH_MAX_CROSSINGS as usize {
-                    return Err(CsgOverflow::Intervals);
+    let walked = traverse(
+        data.nodes,
+        root,
+        BoxRay::new(o, d, -CSG_FAR),
+        CSG_FAR,
+        ChildOrder::LeftFirst,
+        steps,
+        |triangles, _, _| {
+            for k in triangles {
+                if let Some(h) =
+                    intersect::triangle(o, d, &data.triangles[k as usize], -CSG_FAR, CSG_FAR)
+                {
+                    if hits.len() >= CSG_MESH_MAX_CROSSINGS as usize {
+                        return ControlFlow::Break(CsgOverflow::Intervals);
+                    }
+                    // Insertion sort by t (stable: ties keep discovery order).
+                    let at = hits.partition_point(|x| x.0 <= h.t);
+                    hits.insert(at, (h.t, h.normal, h.geometric.dot(d) < 0.0));
                 }
-                // Insertion sort by t (stable: ties keep discovery order).
-                let at = hits.partition_point(|x| x.0 <= h.t);
-                hits.insert(at, (h.t, h.normal, h.geometric.dot(d) < 0.0));
             }
-        }
+            ControlFlow::Continue(())
+        },
+    );
+    match walked {
+        Ok(()) => {}
+        Err(Stopped::Steps) => return Err(CsgOverflow::Steps),
+        Err(Stopped::Leaf(overflow)) => return Err(overflow),
     }
     let mut out = Vec::new();
     let mut inside = false;
@@ -426,7 +429,8 @@ fn mesh_crossings(
 }
 
 /// The closest boundary of the program's solid in (t_min, t_max): the CPU
-/// twin of `intersect_csg`. Returns the hit and the leaf material.
+/// twin of `intersect_csg`. Returns the hit and the leaf material, or why
+/// the evaluation gave up; `steps` counts loop iterations.
 pub fn closest(
     data: CsgData,
     start: u32,
@@ -434,22 +438,18 @@ pub fn closest(
     d: Vec3,
     t_min: f32,
     t_max: f32,
-    result: &mut TraceResult,
-) -> Option<(intersect::ObjectHit, u32)> {
-    let list = match intervals(data, start, o, d, &mut result.steps) {
-        Ok(list) => list,
-        Err(_) => {
-            result.overflow = true;
-            return None;
-        }
+    steps: &mut u32,
+) -> Result<Option<(intersect::ObjectHit, u32)>, CsgOverflow> {
+    let list = intervals(data, start, o, d, steps)?;
+    let Some(e) = list.into_iter().find(|e| e.t > t_min) else {
+        return Ok(None);
     };
-    let e = list.into_iter().find(|e| e.t > t_min)?;
-    (e.t < t_max).then_some((
+    Ok((e.t < t_max).then_some((
         intersect::ObjectHit {
             t: e.t,
             normal: e.normal,
             geometric: e.normal,
         },
         e.material,
-    ))
+    )))
 }

@@ -2,13 +2,17 @@
 //! BVH per mesh (binned SAH over triangles; an analytic shape is its own
 //! leaf) and a top-level BVH over instances (world bounds of each transformed
 //! bottom level). Also the CPU reference traversal the tests compare the GPU
-//! against; it is never used for rendering. Imports scene and glam; the
-//! plain Pod layouts it builds for the GPU are in [`layout`] (no wgpu here).
+//! against (one stack loop, [`traverse`], walks the top level, the meshes'
+//! bottom levels and CSG mesh leaves); it is never used for rendering.
+//! Imports scene and glam; the plain Pod layouts it builds for the GPU are
+//! in [`layout`] (no GPU types here).
 
 pub mod bvh;
 pub mod csg;
 pub mod intersect;
 pub mod layout;
+
+use std::ops::ControlFlow;
 
 use glam::{Mat4, Vec3};
 
@@ -275,58 +279,54 @@ impl SceneAccel {
     /// CPU reference: the closest hit of the world ray (origin, dir) in
     /// (t_min, t_max), by the same traversal the GPU runs.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> TraceResult {
-        let mut result = TraceResult {
-            hit: None,
-            steps: 0,
-            overflow: false,
-        };
-        let mut t_best = t_max;
-        let inv = dir.recip();
-        let mut stack = Vec::with_capacity(TRAVERSAL_STACK as usize);
-        stack.push(0u32);
-        while let Some(index) = stack.pop() {
-            result.steps += 1;
-            if result.steps > MAX_TRAVERSAL_STEPS {
-                result.overflow = true;
-                break;
-            }
-            let node = self.nodes[index as usize];
-            if intersect::ray_box(origin, inv, node.aabb().min, node.aabb().max, t_min, t_best)
-                .is_none()
-            {
-                continue;
-            }
-            if node.count == 0 {
-                push_ordered(&mut stack, &self.nodes, node.left_or_first, origin, inv);
-                continue;
-            }
-            for slot in node.left_or_first..node.left_or_first + node.count {
-                let instance = self.tlas_items[slot as usize];
-                let (world_from_object, object_from_world, shape) =
-                    self.instances[instance as usize];
-                let o = object_from_world.transform_point3(origin);
-                let d = object_from_world.transform_vector3(dir);
-                if let Some((h, material)) =
-                    self.intersect_shape(shape, o, d, t_min, t_best, &mut result)
-                {
-                    t_best = h.t;
-                    let to_world = world_from_object.inverse().transpose();
-                    result.hit = Some(Hit {
-                        t: h.t,
-                        instance,
-                        normal: to_world.transform_vector3(h.normal).normalize(),
-                        geometric: to_world.transform_vector3(h.geometric).normalize(),
-                        leaf_material: (material != CSG_NO_MATERIAL).then_some(material),
-                    });
+        let mut hit = None;
+        let mut steps = 0;
+        let ray = BoxRay::new(origin, dir, t_min);
+        let walked = traverse(
+            &self.nodes,
+            0,
+            ray,
+            t_max,
+            ChildOrder::NearerFirst,
+            &mut steps,
+            |slots, steps, t_best| {
+                for slot in slots {
+                    let instance = self.tlas_items[slot as usize];
+                    let (world_from_object, object_from_world, shape) =
+                        self.instances[instance as usize];
+                    let o = object_from_world.transform_point3(origin);
+                    let d = object_from_world.transform_vector3(dir);
+                    let (found, overflow) =
+                        self.intersect_shape(shape, o, d, t_min, *t_best, steps);
+                    if let Some((h, material)) = found {
+                        *t_best = h.t;
+                        let to_world = world_from_object.inverse().transpose();
+                        hit = Some(Hit {
+                            t: h.t,
+                            instance,
+                            normal: to_world.transform_vector3(h.normal).normalize(),
+                            geometric: to_world.transform_vector3(h.geometric).normalize(),
+                            leaf_material: (material != CSG_NO_MATERIAL).then_some(material),
+                        });
+                    }
+                    if overflow {
+                        return ControlFlow::Break(());
+                    }
                 }
-                if result.overflow {
-                    return result;
-                }
-            }
+                ControlFlow::Continue(())
+            },
+        );
+        TraceResult {
+            hit,
+            steps,
+            overflow: walked.is_err(),
         }
-        result
     }
 
+    /// The closest hit of the object-space ray (o, d) with `shape` in
+    /// (t_min, t_max) and its leaf material, counting loop iterations in
+    /// `steps`; true when the query ran out of steps or CSG intervals (the
+    /// hit is then the best found before).
     fn intersect_shape(
         &self,
         shape: u32,
@@ -334,8 +334,8 @@ impl SceneAccel {
         d: Vec3,
         t_min: f32,
         t_max: f32,
-        result: &mut TraceResult,
-    ) -> Option<(intersect::ObjectHit, u32)> {
+        steps: &mut u32,
+    ) -> (Option<(intersect::ObjectHit, u32)>, bool) {
         let s = self.shapes[shape as usize];
         if s.kind == SHAPE_CSG {
             let data = csg::CsgData {
@@ -344,58 +344,136 @@ impl SceneAccel {
                 nodes: &self.nodes,
                 triangles: &self.triangles,
             };
-            return csg::closest(data, s.blas_root, o, d, t_min, t_max, result);
+            return match csg::closest(data, s.blas_root, o, d, t_min, t_max, steps) {
+                Ok(found) => (found, false),
+                Err(_) => (None, true),
+            };
         }
         if s.kind != SHAPE_MESH {
-            return intersect::analytic(s.kind, s.params, o, d, t_min, t_max)
-                .map(|h| (h, CSG_NO_MATERIAL));
+            let found = intersect::analytic(s.kind, s.params, o, d, t_min, t_max);
+            return (found.map(|h| (h, CSG_NO_MATERIAL)), false);
         }
-        let inv = d.recip();
         let mut best: Option<intersect::ObjectHit> = None;
-        let mut t_best = t_max;
-        let mut stack = vec![s.blas_root];
-        while let Some(index) = stack.pop() {
-            result.steps += 1;
-            if result.steps > MAX_TRAVERSAL_STEPS {
-                result.overflow = true;
-                return best.map(|h| (h, CSG_NO_MATERIAL));
-            }
-            let node = self.nodes[index as usize];
-            if intersect::ray_box(o, inv, node.aabb().min, node.aabb().max, t_min, t_best).is_none()
-            {
-                continue;
-            }
-            if node.count == 0 {
-                push_ordered(&mut stack, &self.nodes, node.left_or_first, o, inv);
-                continue;
-            }
-            for k in node.left_or_first..node.left_or_first + node.count {
-                if let Some(h) =
-                    intersect::triangle(o, d, &self.triangles[k as usize], t_min, t_best)
-                {
-                    t_best = h.t;
-                    best = Some(h);
+        let walked = traverse(
+            &self.nodes,
+            s.blas_root,
+            BoxRay::new(o, d, t_min),
+            t_max,
+            ChildOrder::NearerFirst,
+            steps,
+            |triangles, _, t_best| {
+                for k in triangles {
+                    if let Some(h) =
+                        intersect::triangle(o, d, &self.triangles[k as usize], t_min, *t_best)
+                    {
+                        *t_best = h.t;
+                        best = Some(h);
+                    }
                 }
-            }
-        }
-        best.map(|h| (h, CSG_NO_MATERIAL))
+                ControlFlow::<()>::Continue(())
+            },
+        );
+        (best.map(|h| (h, CSG_NO_MATERIAL)), walked.is_err())
     }
 }
 
-/// Pushes the two children of an inner node, the nearer one last (popped
-/// first). Children the ray misses are still pushed; the pop tests them.
-fn push_ordered(stack: &mut Vec<u32>, nodes: &[BvhNode], left: u32, o: Vec3, inv: Vec3) {
-    let entry = |i: u32| {
-        let b = nodes[i as usize].aabb();
-        intersect::ray_box(o, inv, b.min, b.max, 0.0, f32::MAX).unwrap_or(f32::MAX)
-    };
-    if entry(left) <= entry(left + 1) {
-        stack.push(left + 1);
-        stack.push(left);
-    } else {
-        stack.push(left);
-        stack.push(left + 1);
+/// A ray as the box tests of a traversal see it: origin, reciprocal
+/// direction and the near end of the interval searched.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct BoxRay {
+    pub origin: Vec3,
+    pub inv_dir: Vec3,
+    pub t_min: f32,
+}
+
+impl BoxRay {
+    pub(crate) fn new(origin: Vec3, dir: Vec3, t_min: f32) -> BoxRay {
+        BoxRay {
+            origin,
+            inv_dir: dir.recip(),
+            t_min,
+        }
     }
+}
+
+/// Which child of an inner node a traversal visits first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ChildOrder {
+    /// The child whose box the ray enters first (closest-hit queries: a
+    /// near hit shrinks the interval before the far child is tested).
+    NearerFirst,
+    /// Always the left child (queries that collect every crossing).
+    LeftFirst,
+}
+
+/// Why [`traverse`] stopped before visiting every node it had to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Stopped<B> {
+    /// More loop iterations than MAX_TRAVERSAL_STEPS.
+    Steps,
+    /// The leaf action broke off with this value.
+    Leaf(B),
+}
+
+/// The one BVH stack traversal of the CPU reference (the loop the shaders'
+/// traversal mirrors): from `root`, pop a node, count one step in `steps`
+/// (giving up past MAX_TRAVERSAL_STEPS), skip it when the ray misses its
+/// box in (t_min, t_max), push an inner node's two children in `order`
+/// (children the ray misses are still pushed; the pop tests them), and hand
+/// a leaf's item range to `leaf`. `leaf` gets the step counter (for nested
+/// traversals sharing the budget) and t_max, which it lowers when it finds
+/// a closer hit; it may break off the traversal.
+pub(crate) fn traverse<B>(
+    nodes: &[BvhNode],
+    root: u32,
+    ray: BoxRay,
+    t_max: f32,
+    order: ChildOrder,
+    steps: &mut u32,
+    mut leaf: impl FnMut(std::ops::Range<u32>, &mut u32, &mut f32) -> ControlFlow<B>,
+) -> Result<(), Stopped<B>> {
+    let mut t_max = t_max;
+    let mut stack = Vec::with_capacity(TRAVERSAL_STACK as usize);
+    stack.push(root);
+    while let Some(index) = stack.pop() {
+        *steps += 1;
+        if *steps > MAX_TRAVERSAL_STEPS {
+            return Err(Stopped::Steps);
+        }
+        let node = nodes[index as usize];
+        let b = node.aabb();
+        if intersect::ray_box(ray.origin, ray.inv_dir, b.min, b.max, ray.t_min, t_max).is_none() {
+            continue;
+        }
+        if node.count == 0 {
+            let left = node.left_or_first;
+            let left_first = match order {
+                ChildOrder::LeftFirst => true,
+                ChildOrder::NearerFirst => {
+                    let entry = |i: u32| {
+                        let b = nodes[i as usize].aabb();
+                        intersect::ray_box(ray.origin, ray.inv_dir, b.min, b.max, 0.0, f32::MAX)
+                            .unwrap_or(f32::MAX)
+                    };
+                    entry(left) <= entry(left + 1)
+                }
+            };
+            // The child visited first is pushed last.
+            if left_first {
+                stack.push(left + 1);
+                stack.push(left);
+            } else {
+                stack.push(left);
+                stack.push(left + 1);
+            }
+            continue;
+        }
+        let items = node.left_or_first..node.left_or_first + node.count;
+        if let ControlFlow::Break(b) = leaf(items, steps, &mut t_max) {
+            return Err(Stopped::Leaf(b));
+        }
+    }
+    Ok(())
 }
 
 /// A world-space hit.

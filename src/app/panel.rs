@@ -56,13 +56,6 @@ pub fn enum_combo<T: Copy + PartialEq>(
     changed
 }
 
-fn tone_map_name(t: ToneMap) -> &'static str {
-    match t {
-        ToneMap::Clamp => "clamp",
-        ToneMap::Reinhard => "reinhard",
-    }
-}
-
 fn vec3_ui(ui: &mut Ui, label: &str, v: &mut Vec3, speed: f32) -> bool {
     let mut changed = false;
     ui.horizontal(|ui| {
@@ -297,8 +290,8 @@ fn settings_ui(ui: &mut Ui, model: &mut Model) {
         ui,
         "tone map",
         &mut s.tone_map,
-        &[ToneMap::Clamp, ToneMap::Reinhard],
-        tone_map_name,
+        &ToneMap::ALL,
+        ToneMap::name,
     );
     ui.add(
         egui::Slider::new(&mut s.exposure, 0.01..=16.0)

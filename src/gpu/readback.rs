@@ -1,4 +1,6 @@
-//! Copying textures and buffers back to the CPU.
+//! Copying textures and buffers back to the CPU: the one place that maps a
+//! staging buffer ([`read_buffer`]); [`copy_and_read`] stages a GPU-only
+//! buffer first, [`read_texture`] a texture.
 
 use crate::gpu::{Gpu, GpuError};
 
@@ -19,6 +21,28 @@ pub fn read_buffer(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError
         .to_vec();
     buffer.unmap();
     Ok(bytes)
+}
+
+/// Copies the first `size` bytes of `source` (which needs COPY_SRC) into a
+/// fresh staging buffer labelled `label` and reads them. Blocks.
+pub fn copy_and_read(
+    gpu: &Gpu,
+    source: &wgpu::Buffer,
+    size: u64,
+    label: &str,
+) -> Result<Vec<u8>, GpuError> {
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    encoder.copy_buffer_to_buffer(source, 0, &staging, 0, size);
+    gpu.queue.submit([encoder.finish()]);
+    read_buffer(gpu, &staging)
 }
 
 /// Copies a 2D texture of `bytes_per_pixel` into tightly packed rows.

@@ -32,8 +32,7 @@ use crate::gpu::twins::{
     FrameUniforms, ReprojectUniforms, TEMPORAL_REJECT_CLIP, TEMPORAL_REJECT_NONE,
 };
 use crate::gpu::{readback, Gpu, GpuError};
-use crate::sampling::{sample, Aperture, Sample};
-use crate::scene::ApertureShape;
+use crate::sampling::{Sample, SampleSchedule};
 use crate::scene::Scene;
 use accumulate::AccumulatePass;
 use driver_accel::DriverAccel;
@@ -409,27 +408,15 @@ impl Renderer {
         Ok(())
     }
 
-    /// Sample k's sub-pixel offset, lens point and shutter time.
-    pub fn sample_schedule(&self, k: u32) -> Sample {
-        let s = &self.settings;
-        let aperture = match self.scene.camera.aperture {
-            ApertureShape::Disk => Aperture::Disk,
-            ApertureShape::Square => Aperture::Square,
-            ApertureShape::Polygon {
-                blades,
-                rotation_deg,
-            } => Aperture::Polygon {
-                blades,
-                rotation: rotation_deg.to_radians(),
-            },
-        };
-        sample(s.pattern, aperture, k, s.spp, s.seed)
+    /// Which sample k is: the settings' schedule through the camera's aperture.
+    pub fn sample_schedule(&self) -> SampleSchedule {
+        self.settings.sample_schedule(&self.scene.camera)
     }
 
     /// The camera of sample `k`: at its shutter time, on its lens point, with
     /// its jittered and sheared projection.
     pub fn sample_camera(&self, k: u32) -> camera::SampleCamera {
-        self.camera_for(&self.sample_schedule(k))
+        self.camera_for(&self.sample_schedule().sample(k))
     }
 
     fn camera_for(&self, smp: &Sample) -> camera::SampleCamera {
@@ -479,7 +466,7 @@ impl Renderer {
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
-        let smp = self.sample_schedule(k);
+        let smp = self.sample_schedule().sample(k);
         let offset = smp.pixel_offset;
         let sc = self.camera_for(&smp);
         let (lo, hi) = self.buffers.world_bounds;
@@ -504,7 +491,7 @@ impl Renderer {
             sample_index: k,
             jitter_px: (offset - glam::Vec2::splat(0.5)).to_array(),
             max_outline_px: max_outline,
-            seed: s.seed,
+            seed: smp.seed,
             world_from_clip: world_from_clip.to_cols_array_2d(),
             mode: s.mode.to_gpu(),
             max_bounces: s.max_bounces,
@@ -536,7 +523,7 @@ impl Renderer {
         }
         let mut motion_time = None;
         if self.buffers.has_motion {
-            let time = self.sample_schedule(k).time;
+            let time = self.sample_schedule().sample(k).time;
             self.buffers.write_instances_at(gpu, &self.scene, time);
             motion_time = Some(time);
         }
@@ -651,20 +638,7 @@ impl Renderer {
         let Some(buffer) = self.reproject.as_ref().and_then(|p| p.motion_buffer()) else {
             return Ok(None);
         };
-        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("motion vector readback"),
-            size: buffer.size(),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("motion vector copy"),
-            });
-        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &staging)?;
+        let bytes = readback::copy_and_read(gpu, buffer, buffer.size(), "motion vector readback")?;
         Ok(Some(bytemuck::cast_slice(&bytes).to_vec()))
     }
 
@@ -752,21 +726,8 @@ impl Renderer {
     /// number of samples it holds (w; after a moving frame, the count the
     /// reprojected history holds).
     pub fn read_accumulator(&self, gpu: &Gpu) -> Result<Vec<[f32; 4]>, GpuError> {
-        let size = self.targets.accum.size();
-        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("accumulation readback"),
-            size,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("accumulation copy"),
-            });
-        encoder.copy_buffer_to_buffer(&self.targets.accum, 0, &staging, 0, size);
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &staging)?;
+        let accum = &self.targets.accum;
+        let bytes = readback::copy_and_read(gpu, accum, accum.size(), "accumulation readback")?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 

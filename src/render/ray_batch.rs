@@ -161,12 +161,6 @@ impl RayBatch {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ray batch readback"),
-            size: hit_bytes,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
         let entries = buffer_entries(&[&ray_buffer, &hit_buffer]);
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ray batch bind group"),
@@ -198,10 +192,7 @@ impl RayBatch {
         gpu.queue.submit([encoder.finish()]);
         gpu.wait_idle()?;
         let seconds = start.elapsed().as_secs_f64();
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(&hit_buffer, 0, &staging, 0, hit_bytes);
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &staging)?;
+        let bytes = readback::copy_and_read(gpu, &hit_buffer, hit_bytes, "ray batch readback")?;
         gpu.take_errors()?;
         Ok((bytemuck::cast_slice(&bytes).to_vec(), seconds))
     }

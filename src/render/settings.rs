@@ -1,10 +1,50 @@
 //! User-facing render settings, and their GPU twins filled in `to_gpu`.
+//! Each settings enum gets its names here, once (`named_enum!`): `ALL`,
+//! `name()`, `parse()` and clap's `ValueEnum`, which the CLI, the panel and
+//! reports all use. (The sample pattern's names live with it in
+//! `sampling`, which stays free of clap.)
 
 use crate::gpu::twins::{
     ResolveUniforms, RENDER_MODE_HYBRID, RENDER_MODE_RASTER, RENDER_MODE_RAYTRACE, TONE_MAP_CLAMP,
     TONE_MAP_REINHARD,
 };
-use crate::sampling::PixelPattern;
+use crate::sampling::{Aperture, PixelPattern, SampleSchedule};
+use crate::scene::ApertureShape;
+
+/// Gives a settings enum its names, in one table: `ALL` (every variant, in
+/// the order menus and `--help` list them), `name()` (the word the CLI, the
+/// panel and reports use), `parse()` (its inverse) and clap's `ValueEnum`
+/// (the CLI's possible values).
+macro_rules! named_enum {
+    ($ty:ident { $($variant:ident => $name:literal),+ $(,)? }) => {
+        impl $ty {
+            /// Every variant, in the order menus and `--help` list them.
+            pub const ALL: [$ty; [$($name),+].len()] = [$($ty::$variant),+];
+
+            /// The word the CLI, the panel and reports use.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($ty::$variant => $name),+
+                }
+            }
+
+            /// The variant called `text`, if any.
+            pub fn parse(text: &str) -> Option<$ty> {
+                Self::ALL.into_iter().find(|v| v.name() == text)
+            }
+        }
+
+        impl clap::ValueEnum for $ty {
+            fn value_variants<'a>() -> &'a [Self] {
+                &Self::ALL
+            }
+
+            fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+                Some(clap::builder::PossibleValue::new(self.name()))
+            }
+        }
+    };
+}
 
 /// How linear radiance becomes a displayable value in [0, 1].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -17,15 +57,10 @@ pub enum ToneMap {
     Reinhard,
 }
 
-impl ToneMap {
-    pub fn parse(text: &str) -> Option<ToneMap> {
-        match text {
-            "clamp" => Some(ToneMap::Clamp),
-            "reinhard" => Some(ToneMap::Reinhard),
-            _ => None,
-        }
-    }
-}
+named_enum!(ToneMap {
+    Clamp => "clamp",
+    Reinhard => "reinhard",
+});
 
 /// Which passes find what each pixel sees.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -41,21 +76,13 @@ pub enum RenderMode {
     Raytrace,
 }
 
+named_enum!(RenderMode {
+    Raster => "raster",
+    Hybrid => "hybrid",
+    Raytrace => "raytrace",
+});
+
 impl RenderMode {
-    pub const ALL: [RenderMode; 3] = [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            RenderMode::Raster => "raster",
-            RenderMode::Hybrid => "hybrid",
-            RenderMode::Raytrace => "raytrace",
-        }
-    }
-
-    pub fn parse(text: &str) -> Option<RenderMode> {
-        Self::ALL.into_iter().find(|m| m.name() == text)
-    }
-
     pub fn to_gpu(self) -> u32 {
         match self {
             RenderMode::Raster => RENDER_MODE_RASTER,
@@ -96,25 +123,13 @@ pub enum AccelChoice {
     Driver,
 }
 
+named_enum!(AccelChoice {
+    Auto => "auto",
+    Software => "software",
+    Driver => "driver",
+});
+
 impl AccelChoice {
-    pub const ALL: [AccelChoice; 3] = [
-        AccelChoice::Auto,
-        AccelChoice::Software,
-        AccelChoice::Driver,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            AccelChoice::Auto => "auto",
-            AccelChoice::Software => "software",
-            AccelChoice::Driver => "driver",
-        }
-    }
-
-    pub fn parse(text: &str) -> Option<AccelChoice> {
-        Self::ALL.into_iter().find(|m| m.name() == text)
-    }
-
     /// Whether `auto` takes the driver path on adapters of this type (given
     /// ray queries): only where it measured faster than the software path
     /// (`celray bench accel`, README "Driver ray queries"). On lavapipe
@@ -144,21 +159,11 @@ pub enum Temporal {
     Blend,
 }
 
-impl Temporal {
-    pub const ALL: [Temporal; 3] = [Temporal::Off, Temporal::Reproject, Temporal::Blend];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Temporal::Off => "off",
-            Temporal::Reproject => "reproject",
-            Temporal::Blend => "blend",
-        }
-    }
-
-    pub fn parse(text: &str) -> Option<Temporal> {
-        Self::ALL.into_iter().find(|t| t.name() == text)
-    }
-}
+named_enum!(Temporal {
+    Off => "off",
+    Reproject => "reproject",
+    Blend => "blend",
+});
 
 /// Everything about how a scene is rendered that is not the scene itself.
 #[derive(Debug, Clone, PartialEq)]
@@ -209,6 +214,27 @@ impl RenderSettings {
             width: camera.width,
             height: camera.height,
             ..RenderSettings::default()
+        }
+    }
+
+    /// Which sample k is under these settings, through `camera`'s aperture.
+    pub fn sample_schedule(&self, camera: &crate::scene::Camera) -> SampleSchedule {
+        let aperture = match camera.aperture {
+            ApertureShape::Disk => Aperture::Disk,
+            ApertureShape::Square => Aperture::Square,
+            ApertureShape::Polygon {
+                blades,
+                rotation_deg,
+            } => Aperture::Polygon {
+                blades,
+                rotation: rotation_deg.to_radians(),
+            },
+        };
+        SampleSchedule {
+            pattern: self.pattern,
+            aperture,
+            spp: self.spp,
+            seed: self.seed,
         }
     }
 

@@ -316,16 +316,7 @@ impl TracePass {
     /// Pixels (summed over samples) whose traversal ran out of its step
     /// budget since this pass was created: 0 unless the scene is too deep.
     pub fn overflow_pixels(&self, gpu: &Gpu) -> Result<u32, GpuError> {
-        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("trace stats readback"),
-            size: 16,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(&self.stats, 0, &staging, 0, 16);
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &staging)?;
+        let bytes = readback::copy_and_read(gpu, &self.stats, 16, "trace stats readback")?;
         Ok(bytemuck::cast_slice::<u8, u32>(&bytes)[0])
     }
 }

@@ -1,11 +1,12 @@
-//! Helpers shared by the GPU tests: a lavapipe device, small scenes, and CPU
-//! evaluations of the same math the shaders do.
+//! Helpers shared by the GPU tests: a lavapipe device, small scenes, CPU
+//! evaluations of the same math the shaders do, and checks more than one
+//! test file runs (the mirror check, GPU hits against the CPU reference).
 #![allow(dead_code)]
 
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 use celray::gpu::{AdapterChoice, Gpu};
-use celray::render::{camera::primary_ray, RenderSettings, Renderer};
+use celray::render::{camera::primary_ray, RenderMode, RenderSettings, Renderer};
 use celray::sampling::PixelPattern;
 use celray::scene::Scene;
 
@@ -120,6 +121,65 @@ pub fn interior(mask: &[bool], w: u32, h: u32, x: u32, y: u32, margin: i32) -> b
                 && mask[(ny as u32 * w + nx as u32) as usize] == v
         })
     })
+}
+
+/// The mirror check: `scene` is one red solid (ambient 1, no lights) over a
+/// mirror floor at y = 0 under a blue background, and `meets(o, d)` says,
+/// solved in f64, whether the ray (o, d) meets the solid. In hybrid and
+/// raytrace, a floor pixel (one whose primary ray misses the solid and
+/// meets y = 0 in front of the eye) shows red exactly where its ray,
+/// reflected about y = 0, meets the solid, else the background; pixels on a
+/// boundary of the expected reflection or of the solid's own silhouette are
+/// not judged. More than 200 pixels must show the reflection. `what` names
+/// the solid in messages ("mirrored geometry").
+pub fn assert_mirror_shows(
+    gpu: &Gpu,
+    scene: &Scene,
+    what: &str,
+    meets: impl Fn(DVec3, DVec3) -> bool,
+) {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    for mode in [RenderMode::Hybrid, RenderMode::Raytrace] {
+        let settings = RenderSettings {
+            mode,
+            ..pixel_centre_settings(scene)
+        };
+        let r = rendered(gpu, scene.clone(), settings);
+        let img = r.read_srgb8(gpu).unwrap();
+        let cam = r.sample_camera(0);
+        let (mut want, mut got, mut direct_mask) = (Vec::new(), Vec::new(), Vec::new());
+        let mut reflected = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let (o, d) = cam.pixel_ray((w, h), x, y);
+                let (o, d) = (o.as_dvec3(), d.as_dvec3());
+                let direct = meets(o, d);
+                let t = -o.y / d.y;
+                let mirror_hit = !direct && t > 0.0;
+                direct_mask.push(direct);
+                let in_reflection = mirror_hit && {
+                    let p = o + d * t;
+                    meets(p, DVec3::new(d.x, -d.y, d.z))
+                };
+                reflected += usize::from(in_reflection);
+                let rgb = rgb_at(&img, w, x, y);
+                want.push(in_reflection);
+                got.push(mirror_hit && rgb[0] > 200 && rgb[2] < 50);
+            }
+        }
+        // Pixels on the solid's own silhouette are excluded too.
+        let mut bad = mismatches_off_boundary(&got, &want, w, h);
+        bad.retain(|&(x, y)| interior(&direct_mask, w, h, x, y, 1));
+        assert!(
+            bad.is_empty(),
+            "{mode:?}: reflection differs from the {what} at {:?}",
+            &bad[..bad.len().min(5)]
+        );
+        assert!(
+            reflected > 200,
+            "the reflection should be visible ({reflected} px)"
+        );
+    }
 }
 
 /// Checks GPU closest hits against the CPU reference traversal, ray by ray:
