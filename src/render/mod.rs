@@ -5,7 +5,9 @@
 //! with the projection jittered to sample k's sub-pixel position; (3) the
 //! accumulate pass adds the G-buffer colour, with outlines, to the float
 //! accumulator; in hybrid and raytrace modes (2) the trace pass, between
-//! them, traces what the raster pass cannot draw (see [`trace`]). On
+//! them, traces what the raster pass cannot draw (see [`trace`]); while
+//! the view moves with temporal reprojection on, (3b) the reproject pass
+//! blends the sample into the reprojected history (see [`reproject`]). On
 //! demand, (4) a resolve pass turns the average into a displayable image:
 //! the renderer owns one per target format ([`Renderer::resolve_into`]).
 //! [`Renderer::pick`] answers "what is under this ray" with the CPU copy of
