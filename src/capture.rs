@@ -54,6 +54,19 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// A `width` x `height` image of one opaque sRGB colour (for tests).
+    #[cfg(test)]
+    pub(crate) fn flat(width: u32, height: u32, rgb: [u8; 3]) -> Frame {
+        Frame {
+            width,
+            height,
+            srgb8: (0..width * height)
+                .flat_map(|_| [rgb[0], rgb[1], rgb[2], 255])
+                .collect(),
+            linear: None,
+        }
+    }
+
     /// The sRGB image as an `image` buffer.
     pub fn to_rgba8(&self) -> image::RgbaImage {
         image::RgbaImage::from_raw(self.width, self.height, self.srgb8.clone())

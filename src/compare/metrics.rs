@@ -83,22 +83,11 @@ mod tests {
         assert!((psnr_rgba8(&a, &b) - expected).abs() < 1e-9);
     }
 
-    fn flat(w: u32, h: u32, rgb: [u8; 3]) -> Frame {
-        Frame {
-            width: w,
-            height: h,
-            srgb8: (0..w * h)
-                .flat_map(|_| [rgb[0], rgb[1], rgb[2], 255])
-                .collect(),
-            linear: None,
-        }
-    }
-
     #[test]
     fn flip_is_zero_for_equal_images_and_grows_with_difference() {
-        let grey = flat(32, 32, [128, 128, 128]);
-        let near = flat(32, 32, [136, 128, 128]);
-        let far = flat(32, 32, [255, 0, 0]);
+        let grey = Frame::flat(32, 32, [128, 128, 128]);
+        let near = Frame::flat(32, 32, [136, 128, 128]);
+        let far = Frame::flat(32, 32, [255, 0, 0]);
         assert_eq!(flip_mean(&grey, &grey), 0.0);
         let small = flip_mean(&grey, &near);
         let large = flip_mean(&grey, &far);

@@ -56,21 +56,10 @@ pub fn contact_sheet(frames: &[(String, &Frame)]) -> image::RgbaImage {
 mod tests {
     use super::*;
 
-    fn flat(w: u32, h: u32, rgb: [u8; 3]) -> Frame {
-        Frame {
-            width: w,
-            height: h,
-            srgb8: (0..w * h)
-                .flat_map(|_| [rgb[0], rgb[1], rgb[2], 255])
-                .collect(),
-            linear: None,
-        }
-    }
-
     #[test]
     fn contact_sheet_places_views_and_labels() {
-        let red = flat(40, 20, [200, 0, 0]);
-        let blue = flat(40, 20, [0, 0, 200]);
+        let red = Frame::flat(40, 20, [200, 0, 0]);
+        let blue = Frame::flat(40, 20, [0, 0, 200]);
         let sheet = contact_sheet(&[("A".into(), &red), ("B".into(), &blue)]);
         assert_eq!(sheet.width(), 2 * 40 + 3 * GAP_PX);
         assert_eq!(sheet.height(), 20 + LABEL_BAR_PX + 2 * GAP_PX);
