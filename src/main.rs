@@ -276,7 +276,12 @@ struct Interrupted(String);
 fn main() {
     quiet_device_select_layer();
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
-    let cli = Cli::parse();
+    // Every refusal exits 1, a command line clap cannot parse included
+    // (clap's own default is 2); --help and --version exit 0.
+    let cli = Cli::try_parse().unwrap_or_else(|e| {
+        let _ = e.print();
+        std::process::exit(if e.use_stderr() { 1 } else { 0 });
+    });
     if let Err(e) = run(cli) {
         if let Some(interrupted) = e.downcast_ref::<Interrupted>() {
             eprintln!("{interrupted}");

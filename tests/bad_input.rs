@@ -1,6 +1,6 @@
 //! Bad input on the command line, end to end: counts past their documented
-//! bounds, scene paths that cannot be read, scenes nested too deeply, an
-//! interrupted render, and driver noise. Each refusal is exit status 1 with
+//! bounds, setting names that do not exist, scene paths that cannot be
+//! read, scenes nested too deeply, an interrupted render, and driver noise. Each refusal is exit status 1 with
 //! one message naming the bound or the file, never a panic, and leaves no
 //! output file behind.
 
@@ -8,7 +8,8 @@ use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-use celray::render::{MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP};
+use celray::render::{RenderMode, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP};
+use celray::sampling::PixelPattern;
 use celray::scene::{MAX_IMAGE_SIZE, MAX_NESTING};
 
 fn command(args: &[&str], cwd: &Path) -> Command {
@@ -142,6 +143,41 @@ fn counts_past_their_bounds_are_refused_naming_the_bound() {
         ]);
     }
     assert_refused(&dir, &cases);
+}
+
+#[test]
+fn unknown_setting_names_are_refused_listing_every_name() {
+    let dir = scratch("names");
+    // The lists come from the enums' own name tables, so a name added to
+    // an enum must show up here without touching the CLI.
+    let list = |names: Vec<&str>| names.join(", ");
+    let cases = [
+        (
+            "--mode",
+            list(RenderMode::ALL.iter().map(|m| m.name()).collect()),
+        ),
+        (
+            "--pattern",
+            list(PixelPattern::ALL.iter().map(|p| p.name()).collect()),
+        ),
+        (
+            "--tone-map",
+            list(ToneMap::ALL.iter().map(|t| t.name()).collect()),
+        ),
+    ];
+    for (flag, names) in cases {
+        // clap's usage message: several lines, the possible values among them.
+        let o = celray(&["render", flag, "sideways", "-o", "out.png"], &dir);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{flag}: {err}");
+        assert!(err.contains("sideways"), "{flag}: {err}");
+        assert!(
+            err.contains(&names),
+            "{flag}: {err:?} should list {names:?}"
+        );
+        assert!(!err.contains("panicked"), "{flag} panicked: {err}");
+        assert!(files_in(&dir).is_empty(), "{flag} wrote a file");
+    }
 }
 
 #[test]
