@@ -162,35 +162,33 @@ fn fs_textured(in: VsOutTextured, @builtin(front_facing) front_facing: bool) -> 
 }
 
 // The base colour at a fragment: the checker at its object-space point, or
-// the material's image, else the mesh's own, at its texture coordinates (analytic shapes compute theirs from
-// the object-space point), trilinear at the mip level of the fine screen
-// derivatives (differences within each 2x2 pixel quad). Derivatives
-// are taken before any branch (uniform control flow); across a longitude
-// seam the smaller of the derivatives of u and of u shifted by half a turn
-// is used, so the seam does not pick the coarsest mip.
+// the material's image, else the mesh's own, at its texture coordinates
+// (analytic shapes compute theirs from the object-space point), trilinear
+// at the mip level of the footprint between neighbouring pixels. Only
+// interpolated inputs are differentiated, before any branch: Mesa 22.3's
+// lavapipe does not run helper invocations through a branch, so the
+// derivative of a value assigned inside one is garbage on the edges of
+// every triangle. An analytic shape's step in uv is the difference of its
+// mapping at the point and at the point one pixel over (the same finite
+// difference as the trace pass's), taken the short way round a longitude
+// seam.
 fn raster_albedo(in: VsOutTextured, m: GpuMaterial) -> vec3<f32> {
+    let dp_dx = dpdxFine(in.object_pos);
+    let dp_dy = dpdyFine(in.object_pos);
+    var dx = dpdxFine(in.uv);
+    var dy = dpdyFine(in.uv);
     let shape = shapes[instances[in.instance].shape];
     var uv = in.uv;
-    var periodic = false;
     if shape.kind != SHAPE_MESH {
-        uv = analytic_uv(shape.kind, shape.params, in.object_pos, in.object_normal);
-        periodic = periodic_u(shape.kind, in.object_normal);
+        let p = in.object_pos;
+        let n = in.object_normal;
+        let periodic = periodic_u(shape.kind, n);
+        uv = analytic_uv(shape.kind, shape.params, p, n);
+        dx = wrap_du(analytic_uv(shape.kind, shape.params, p + dp_dx, n) - uv, periodic);
+        dy = wrap_du(analytic_uv(shape.kind, shape.params, p + dp_dy, n) - uv, periodic);
     }
-    let shifted = vec2<f32>(fract(uv.x + 0.5), uv.y);
-    let dx0 = dpdxFine(uv);
-    let dy0 = dpdyFine(uv);
-    let dx1 = dpdxFine(shifted);
-    let dy1 = dpdyFine(shifted);
-    var dx = dx0;
-    var dy = dy0;
-    if periodic && abs(dx1.x) < abs(dx0.x) {
-        dx.x = dx1.x;
-    }
-    if periodic && abs(dy1.x) < abs(dy0.x) {
-        dy.x = dy1.x;
-    }
-    // The mip level by the same formula as the trace pass's (which uses the
-    // same quad-pairs of neighbouring pixels), so hybrid agrees with raytrace.
+    // The mip level by the same formula as the trace pass's, so hybrid
+    // agrees with raytrace.
     let lod = footprint_lod(dx * m.uv_scale, dy * m.uv_scale);
     if m.checker_size > 0.0 {
         return checker(m, in.object_pos);
