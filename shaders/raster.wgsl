@@ -1,5 +1,7 @@
-// Raster pass: every instance of a base shape in one instanced draw, shaded
-// in the fragment shader into the G-buffer (colour, normal + depth, id).
+// Raster pass: one instanced draw per (base shape, cull mode) group (every
+// instance in raster mode, the meshes in hybrid mode), shaded in the
+// fragment shader into the G-buffer (colour, normal + depth, id; and the
+// albedo in the textured variant).
 
 #include "lib/types.wgsl"
 #include "lib/scene_bindings.wgsl"

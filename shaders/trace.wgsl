@@ -1,7 +1,8 @@
 // Trace pass: per pixel, the same primary ray the raster pass samples;
 // analytic shapes (hybrid) or everything (raytrace) are traced through the
-// two-level BVH and composited against the raster depth; then shadow rays
-// and mirror reflections against the whole scene, shaded by the same
+// two-level BVH (or, in the driver variant, the driver's acceleration
+// structures) and composited against the raster depth; then shadow rays
+// and mirror or glossy reflections against the whole scene, shaded by the same
 // functions as the raster pass. Writes the G-buffer the accumulate pass reads.
 
 #include "lib/types.wgsl"

@@ -1,5 +1,6 @@
 //! The celray command line: the live app (default), headless rendering,
-//! shading comparison, adapter listing, benchmarks.
+//! shading comparison, adapter listing, benchmarks, the sampling
+//! experiment.
 
 mod bench;
 mod experiment;

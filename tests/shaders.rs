@@ -707,32 +707,71 @@ fn bindings_match_rust_layouts() {
     }
 }
 
-/// The scene's group is declared once, in lib/scene_bindings.wgsl: no pass
-/// file or other piece declares a group-0 binding of its own next to it.
+/// The scene's group is declared once, in lib/scene_bindings.wgsl: every
+/// pass file that names one of its bindings includes it, and no pass that
+/// includes it, nor any other shader-lib piece, declares a group-0 binding
+/// of its own next to it. (Passes that read no scene, such as resolve, bind
+/// their own resources as group 0.)
 #[test]
 fn scene_group_is_declared_once() {
     use celray::gpu::shader::SHADER_FILES;
+    const SCENE: &str = "lib/scene_bindings.wgsl";
+    let include = format!("#include \"{SCENE}\"");
+    let scene_text = SHADER_FILES
+        .iter()
+        .find(|(file, _)| *file == SCENE)
+        .map(|(_, text)| *text)
+        .expect("lib/scene_bindings.wgsl is embedded");
+    // `@group(0) @binding(N) var<...> NAME: TYPE;` -> NAME
+    let scene_names: Vec<&str> = scene_text
+        .lines()
+        .filter(|l| l.starts_with("@group(0)"))
+        .filter_map(|l| l.split(" var").nth(1))
+        .map(|rest| match rest.strip_prefix('<') {
+            Some(access) => access.split_once('>').map_or(access, |(_, after)| after),
+            None => rest,
+        })
+        .filter_map(|rest| rest.split(':').next())
+        .map(str::trim)
+        .collect();
+    assert_eq!(
+        scene_names.len(),
+        13,
+        "scene bindings parsed: {scene_names:?}"
+    );
+    let names_binding = |text: &str, name: &str| {
+        text.lines()
+            .map(|l| l.split("//").next().unwrap_or(""))
+            .any(|code| {
+                code.match_indices(name).any(|(at, _)| {
+                    let before = code[..at].chars().next_back();
+                    let after = code[at + name.len()..].chars().next();
+                    !before.is_some_and(|c| c.is_alphanumeric() || c == '_')
+                        && !after.is_some_and(|c| c.is_alphanumeric() || c == '_')
+                })
+            })
+    };
+    let mut users = 0;
     for (file, text) in SHADER_FILES {
-        let scene_users = [
-            "raster.wgsl",
-            "trace.wgsl",
-            "ray_batch.wgsl",
-            "accumulate.wgsl",
-        ];
-        if *file == "lib/scene_bindings.wgsl" {
+        if *file == SCENE {
             continue;
         }
-        if scene_users.contains(file) {
-            assert!(
-                text.contains("#include \"lib/scene_bindings.wgsl\""),
-                "{file} reads the scene and must include lib/scene_bindings.wgsl"
-            );
+        let includes = text.contains(&include);
+        if !file.starts_with("lib/") {
+            if let Some(name) = scene_names.iter().find(|n| names_binding(text, n)) {
+                assert!(
+                    includes,
+                    "{file} reads the scene's `{name}` and must include {SCENE}"
+                );
+            }
         }
-        if scene_users.contains(file) || file.starts_with("lib/") {
+        users += usize::from(includes);
+        if includes || file.starts_with("lib/") {
             assert!(
                 !text.contains("@group(0)"),
-                "{file} declares a group-0 binding: the scene's group is lib/scene_bindings.wgsl's"
+                "{file} declares a group-0 binding: the scene's group is {SCENE}'s"
             );
         }
     }
+    assert!(users > 0, "no pass includes {SCENE}");
 }

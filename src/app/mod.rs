@@ -11,8 +11,9 @@
 //! pieces [`model`], [`panel`], [`controller`], [`layout`], [`watch`],
 //! [`screenshot`].
 //!
-//! Layers: this module imports render, winit and egui; nothing below it
-//! imports this module.
+//! Layers: this module imports render, compare (views and labels), gpu,
+//! scene, sampling, winit, egui, notify and jiff; nothing below it imports
+//! this module.
 
 pub mod controller;
 mod event_loop;

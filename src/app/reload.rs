@@ -34,7 +34,8 @@ pub(super) struct HotReload {
 }
 
 impl HotReload {
-    /// Watches nothing yet; `watch` finds the shader folder to watch.
+    /// Watches nothing yet (watching starts in `LiveApp::rewatch`); with
+    /// `watch`, finds the shader folder to watch.
     pub fn new(watch: bool) -> HotReload {
         HotReload {
             shader_dir: if watch { watch::shader_dir() } else { None },

@@ -1,5 +1,5 @@
-//! Hot reload: watches the scene file and the `shaders/` folder (notify)
-//! and says which of them changed.
+//! Hot reload: watches the scene file, its image files and the `shaders/`
+//! folder (notify) and says which of them changed.
 
 use std::path::{Path, PathBuf};
 

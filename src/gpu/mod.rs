@@ -1,8 +1,9 @@
 //! The GPU layer: device and adapter, shader composition (with the limits
 //! header generated from Rust constants), the Rust twins of WGSL structs,
 //! bind-group layout helpers, the GPU timer and readback. Imports wgpu, and
-//! from `scene` and `accel` only the constants and plain Pod layouts it
-//! hands to WGSL; never a scene, a pass, winit or egui.
+//! from `scene` and `accel` only the constants, plain Pod layouts and
+//! texture-sampler types it hands to WGSL; never a scene, a pass, winit or
+//! egui.
 
 mod context;
 pub mod layout;

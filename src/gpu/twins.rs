@@ -1,4 +1,5 @@
-//! Rust twins of the WGSL structs in `shaders/lib/types.wgsl`: same names,
+//! Rust twins of the WGSL structs in `shaders/lib/types.wgsl` (and
+//! `ReprojectUniforms`, declared in `shaders/reproject.wgsl`): same names,
 //! same field names, `#[repr(C)]` and Pod. `tests/shaders.rs` parses the WGSL
 //! with naga and checks every size, offset and constant against these.
 //!

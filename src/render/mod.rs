@@ -1,7 +1,9 @@
 //! The renderer: the passes of a frame, one sample at a time, averaged in
-//! the accumulation buffer. Knows scene, sampling and gpu; never winit or egui.
+//! the accumulation buffer. Knows scene, sampling, accel and gpu; never
+//! winit or egui.
 //!
-//! Per sample k: (1) the raster pass shades every instance into the G-buffer
+//! Per sample k: (1) the raster pass shades what it draws (every instance
+//! in raster mode, the meshes in hybrid mode) into the G-buffer
 //! with the projection jittered to sample k's sub-pixel position; (3) the
 //! accumulate pass adds the G-buffer colour, with outlines, to the float
 //! accumulator; in hybrid and raytrace modes (2) the trace pass, between
@@ -740,7 +742,8 @@ impl Renderer {
     }
 
     /// The G-buffer's id target: 0 for background, else GPU instance + 1
-    /// (see [`SceneBuffers::instance_order`]). For tests and picking.
+    /// (see [`SceneBuffers::instance_order`]). For tests (picking is
+    /// [`Renderer::pick`], on the CPU).
     pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
         let g = if self.settings.mode == RenderMode::Raster {
             &self.targets.raster

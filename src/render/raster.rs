@@ -1,4 +1,6 @@
-//! Pass 1: rasterize every instance into the G-buffer, shaded. Group 0 is
+//! Pass 1: rasterize into the raster G-buffer, shaded: every instance in
+//! raster mode, the meshes in hybrid mode (analytic shapes and CSG are
+//! traced), nothing in raytrace mode (the pass only clears). Group 0 is
 //! the scene's shared group; group 1 is [`PASS_LAYOUT`] (frame uniforms).
 
 use crate::gpu::twins::{Vertex, FAR_DEPTH};

@@ -91,8 +91,8 @@ impl RayBatch {
         })
     }
 
-    /// Traces `rays` against `scene`; returns one hit per ray (and the GPU
-    /// seconds of the dispatch when `timed`, from wall time around a wait).
+    /// Traces `rays` against `scene`; returns one hit per ray (timed:
+    /// [`RayBatch::trace_timed`]).
     pub fn trace(
         &self,
         gpu: &Gpu,

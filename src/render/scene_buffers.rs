@@ -102,7 +102,9 @@ pub struct SceneBuffers {
     /// Whether any instance moves over the shutter (matrices then change
     /// per sample).
     pub has_motion: bool,
-    /// The ray tracer's view of the scene (CPU copy kept for tests).
+    /// The ray tracer's view of the scene, kept on the CPU: the trace
+    /// variant's key, the driver's structures, [`crate::render::Renderer::pick`]
+    /// (click-to-focus) and the tests read it.
     pub accel: SceneAccel,
     pub shapes: wgpu::Buffer,
     pub nodes: wgpu::Buffer,
@@ -115,7 +117,8 @@ pub struct SceneBuffers {
     pub triangle_maps: wgpu::Buffer,
     /// Base-colour images (a 1x1 white layer when there are none).
     pub textures: SceneTextures,
-    /// Whether any material has an image or a pattern: passes compile
+    /// Whether any material has an image or a pattern, or any mesh its
+    /// own map: passes compile
     /// their texture code in only then (override `TEXTURES_ENABLED`).
     pub uses_textures: bool,
     /// Group [`SCENE_GROUP`] of every pass that reads the scene

@@ -65,8 +65,8 @@ named_enum!(ToneMap {
 /// Which passes find what each pixel sees.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RenderMode {
-    /// Rasterize everything (analytic shapes tessellated); no ray tracing,
-    /// so no shadows or reflections.
+    /// Rasterize every instance (analytic shapes tessellated; CSG shapes
+    /// are not drawn); no ray tracing, so no shadows or reflections.
     Raster,
     /// Meshes rasterized, analytic shapes ray-traced exactly and composited
     /// by depth; shadows and reflections traced against everything.

@@ -1,5 +1,6 @@
-//! Per-image GPU storage: the G-buffer the raster pass writes, the float
-//! accumulation buffer, and an 8-bit sRGB target for capture.
+//! Per-image GPU storage: two G-buffers (the raster pass's, with its depth
+//! target and albedo, and the trace pass's), the float accumulation
+//! buffer, and an 8-bit sRGB target for capture.
 
 use crate::gpu::{Gpu, GpuError};
 

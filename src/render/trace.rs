@@ -1,7 +1,9 @@
 //! Pass 2: ray tracing in compute. Per pixel, the same primary ray as the
 //! raster pass, traced through the two-level BVH (analytic shapes only in
 //! hybrid mode, composited against the raster depth; everything in raytrace
-//! mode), then shadow rays and mirror reflections against the whole scene.
+//! mode), then shadow rays and mirror or glossy reflections against the
+//! whole scene. The driver variant walks the driver's acceleration
+//! structures (ray queries) instead of the BVH.
 //!
 //! Bindings: group 0 is the scene's shared group
 //! ([`crate::render::scene_buffers::SCENE_LAYOUT`]); group 1 is
