@@ -85,9 +85,9 @@ fn time_frames(
         usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
         view_formats: &[],
     });
-    let timed = renderer.enable_pass_timing(gpu);
+    renderer.enable_pass_timing(gpu);
     let mut times = Vec::new();
-    let mut passes: Vec<(&'static str, f64)> = Vec::new();
+    let mut passes = PassMeans::default();
     for i in 0..args.frames + 3 {
         let start = Instant::now();
         renderer.render_sample(gpu)?;
@@ -95,26 +95,49 @@ fn time_frames(
         renderer.resolve_into(gpu, &mut encoder, &target)?;
         gpu.queue.submit([encoder.finish()]);
         gpu.wait_idle()?;
+        // Read every sample's pass times, warm-up ones too: a sample is
+        // timed only once the one before it has been read.
+        let pass_times = renderer.pass_times(gpu)?;
         if i < 3 {
             continue;
         }
         times.push(start.elapsed().as_secs_f64() * 1e3);
-        if timed {
-            for (k, (name, ms)) in renderer.pass_times(gpu)?.into_iter().enumerate() {
-                if passes.len() <= k {
-                    passes.push((name, 0.0));
-                }
-                passes[k].1 += ms / f64::from(args.frames);
-            }
-        }
+        passes.add(&pass_times);
     }
     let mean = times.iter().sum::<f64>() / times.len() as f64;
     times.sort_by(f64::total_cmp);
     Ok(FrameStats {
         mean,
         median: times[times.len() / 2],
-        passes,
+        passes: passes.means(),
     })
+}
+
+/// Mean GPU milliseconds per pass over the samples that timed it.
+#[derive(Default)]
+struct PassMeans {
+    sums: Vec<(&'static str, f64, u32)>,
+}
+
+impl PassMeans {
+    fn add(&mut self, pass_times: &[(&'static str, f64)]) {
+        for &(name, ms) in pass_times {
+            match self.sums.iter_mut().find(|(n, _, _)| *n == name) {
+                Some((_, sum, count)) => {
+                    *sum += ms;
+                    *count += 1;
+                }
+                None => self.sums.push((name, ms, 1)),
+            }
+        }
+    }
+
+    fn means(&self) -> Vec<(&'static str, f64)> {
+        self.sums
+            .iter()
+            .map(|&(name, sum, count)| (name, sum / f64::from(count)))
+            .collect()
+    }
 }
 
 impl FrameStats {
@@ -555,7 +578,7 @@ fn temporal_rows(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
         };
         let mut renderer = Renderer::new(gpu, scene.clone(), settings)?;
         renderer.enable_pass_timing(gpu);
-        let (mut wall, mut passes) = (0.0, Vec::<(&str, f64)>::new());
+        let (mut wall, mut passes) = (0.0, PassMeans::default());
         for i in 0..args.frames + 3 {
             let mut camera = scene.camera.clone();
             let turn = glam::Quat::from_rotation_y((0.5 * i as f32).to_radians());
@@ -564,21 +587,17 @@ fn temporal_rows(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
             let start = Instant::now();
             renderer.render_sample(gpu)?;
             gpu.wait_idle()?;
+            let pass_times = renderer.pass_times(gpu)?;
             if i < 3 {
                 continue;
             }
             wall += start.elapsed().as_secs_f64() * 1e3 / f64::from(args.frames);
-            for (name, ms) in renderer.pass_times(gpu)? {
-                match passes.iter_mut().find(|(n, _)| *n == name) {
-                    Some(p) => p.1 += ms / f64::from(args.frames),
-                    None => passes.push((name, ms / f64::from(args.frames))),
-                }
-            }
+            passes.add(&pass_times);
         }
         let st = FrameStats {
             mean: wall,
             median: wall,
-            passes,
+            passes: passes.means(),
         };
         r.case(
             &format!("temporal_{}", temporal.name()),
@@ -668,6 +687,9 @@ fn missing_helmet(args: &BenchArgs) -> String {
 
 /// Times the floor kernel against 1 and 64 spheres and records floor_1 as
 /// the denominator of every floor_ratio of this run.
+/// The fewest dispatches the floor kernel's median is taken over.
+const MIN_FLOOR_FRAMES: u32 = 20;
+
 fn floor_suite(gpu: &Gpu, args: &BenchArgs, r: &mut Report) -> anyhow::Result<()> {
     md!(
         r,
@@ -678,7 +700,11 @@ fn floor_suite(gpu: &Gpu, args: &BenchArgs, r: &mut Report) -> anyhow::Result<()
     md!(r, "| case | GPU ms (median) |");
     md!(r, "|---|---|");
     for n in [1u32, 64] {
-        let ms = floor::floor_ms(gpu, args.width, args.height, n, args.frames)?;
+        // Every ratio divides by floor_1, a few milliseconds long: its
+        // median over 5 dispatches moved by up to 2x between runs on a
+        // quiet machine, over 20 by under 2%. So never fewer than 20.
+        let frames = args.frames.max(MIN_FLOOR_FRAMES);
+        let ms = floor::floor_ms(gpu, args.width, args.height, n, frames)?;
         if n == 1 {
             r.floor_1 = Some(ms);
         }

@@ -272,15 +272,16 @@ impl GpuTimer {
             .flatten()
     }
 
-    /// Waits for the last timed round's read-back and returns its times
-    /// (the last ones read when no round is in flight; empty before any).
+    /// Waits for the round in flight and returns its times; empty when no
+    /// round is in flight (the last round was not timed because an earlier
+    /// one was still being read back), so a caller never counts one round
+    /// twice.
     pub fn wait(&mut self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>, GpuError> {
         if self.state.load(Ordering::Acquire) == MAPPING {
             gpu.device
                 .poll(wgpu::PollType::wait_indefinitely())
                 .map_err(|e| GpuError::Readback(e.to_string()))?;
         }
-        self.collect();
-        Ok(self.latest.clone().unwrap_or_default())
+        Ok(self.collect().map(<[_]>::to_vec).unwrap_or_default())
     }
 }

@@ -614,8 +614,10 @@ impl Renderer {
         self.timer.is_some()
     }
 
-    /// GPU milliseconds per pass of the last timed sample, in the order of
-    /// [`PASS_NAMES`] (blocks until it is done; empty without timing).
+    /// GPU milliseconds per pass of the last sample, in the order of
+    /// [`PASS_NAMES`] (blocks until it is done). Empty without timing, or
+    /// when that sample was not timed because an earlier one's times had
+    /// not been read yet: call this after every timed sample.
     pub fn pass_times(&mut self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>, GpuError> {
         match &mut self.timer {
             Some(t) => t.timer.wait(gpu),
