@@ -53,6 +53,18 @@ const RULES: &[Rule] = &[
         root: "src/capture.rs",
         forbidden: &[UI],
     },
+    Rule {
+        root: "src/view.rs",
+        forbidden: &[UI],
+    },
+    Rule {
+        root: "src/compare",
+        forbidden: &[UI],
+    },
+    Rule {
+        root: "src/fixtures.rs",
+        forbidden: &[CPU_ONLY, &["crate::accel", "crate::sampling"]],
+    },
 ];
 
 fn rust_files(root: &Path) -> Vec<PathBuf> {

@@ -11,7 +11,7 @@
 //! pieces [`model`], [`panel`], [`controller`], [`layout`], [`watch`],
 //! [`screenshot`].
 //!
-//! Layers: this module imports render, compare (views and labels), gpu,
+//! Layers: this module imports render, view (views and labels), gpu,
 //! scene, sampling, winit, egui, notify and jiff; nothing below it imports
 //! this module.
 
@@ -32,10 +32,10 @@ pub mod watch;
 
 use std::path::PathBuf;
 
-use crate::compare::ViewSpec;
 use crate::gpu::AdapterChoice;
 use crate::render::RenderSettings;
 use crate::scene::Scene;
+use crate::view::ViewSpec;
 pub use layout::Layout;
 
 /// The controls, as shown in the panel and in README.md.

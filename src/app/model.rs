@@ -8,9 +8,9 @@ use glam::Vec3;
 
 use super::controller::{self, AxisView, MoveKeys, NavMode};
 use super::layout::Layout;
-use crate::compare::ViewSpec;
 use crate::render::RenderSettings;
 use crate::scene::{Scene, ShadingModel, Toon};
+use crate::view::ViewSpec;
 
 /// One-shot requests from the panel or the keyboard, served by the window.
 #[derive(Debug, Default, Clone, Copy)]

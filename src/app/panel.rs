@@ -9,12 +9,12 @@ use super::controller::NavMode;
 use super::layout::Layout;
 use super::model::Model;
 use super::timing::PassTimes;
-use crate::compare::ViewSpec;
 use crate::render::{AccelChoice, RenderMode, Temporal, ToneMap, MAX_BOUNCES, MAX_SPP};
 use crate::sampling::PixelPattern;
 use crate::scene::{
     ApertureShape, Light, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
 };
+use crate::view::ViewSpec;
 
 /// What the panel shows but does not edit.
 pub struct PanelInfo<'a> {

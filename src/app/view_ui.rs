@@ -7,7 +7,7 @@ use egui::{Align2, Color32, FontId, Id, PointerButton, Pos2, Rect, Sense, Stroke
 use super::controller::{self, DragButton, Gesture, Mods, NavMode};
 use super::layout::{self, Layout};
 use super::model::Model;
-use crate::compare::settings_label;
+use crate::view::settings_label;
 
 /// What the view area's UI gave this frame.
 pub(super) struct ViewArea {

@@ -10,10 +10,10 @@ use super::model::Model;
 use super::screenshot;
 use super::surface::read_rgba8;
 use super::timing::FrameTimer;
-use crate::compare::ViewSpec;
 use crate::gpu::{Gpu, GpuError};
 use crate::render::{RenderSettings, Renderer};
 use crate::scene::Camera;
+use crate::view::ViewSpec;
 
 /// The number of view slots (the most views a layout shows).
 pub(super) const MAX_VIEWS: usize = 4;
