@@ -806,9 +806,13 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
         }
         if let Some(t) = app::timing::mean_pass_times(&report.pass_times) {
             println!(
-                "GPU per frame (mean of {} timed frames, all views): raster {:.2} ms, \
+                "GPU per frame (mean of {} timed frames that sampled, all views): raster {:.2} ms, \
                  trace {:.2} ms, outline+accumulate {:.2} ms, resolve {:.2} ms, egui {:.2} ms",
-                report.pass_times.len(),
+                report
+                    .pass_times
+                    .iter()
+                    .filter(|t| t.views_sampled > 0)
+                    .count(),
                 t.raster_ms,
                 t.trace_ms,
                 t.accumulate_ms,
