@@ -12,7 +12,8 @@ use super::timing::PassTimes;
 use crate::render::{AccelChoice, RenderMode, Temporal, ToneMap, MAX_BOUNCES, MAX_SPP};
 use crate::sampling::PixelPattern;
 use crate::scene::{
-    ApertureShape, Light, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS, MAX_TOON_BANDS,
+    ApertureShape, Camera, Light, Material, Rim, ShadingModel, Toon, DEFAULT_TOON_BANDS,
+    MAX_TOON_BANDS,
 };
 use crate::view::ViewSpec;
 
@@ -330,6 +331,14 @@ fn camera_ui(ui: &mut Ui, model: &mut Model) {
     vec3_ui(ui, "eye", &mut c.eye, 0.02);
     vec3_ui(ui, "target", &mut c.target, 0.02);
     slider(ui, "fov y (deg)", &mut c.fov_y_deg, 1.0..=170.0);
+    lens_ui(ui, c);
+    shutter_ui(ui, c);
+    color_ui(ui, "ambient", &mut model.scene.ambient);
+    color_ui(ui, "background", &mut model.scene.background);
+}
+
+/// The thin lens: aperture size and shape, and where it focuses.
+fn lens_ui(ui: &mut Ui, c: &mut Camera) {
     ui.add(
         egui::Slider::new(&mut c.aperture_radius, 0.0..=1.0)
             .text("aperture radius")
@@ -383,6 +392,10 @@ fn camera_ui(ui: &mut Ui, model: &mut Model) {
             );
         });
     }
+}
+
+/// The shutter interval that motion blur spreads samples over.
+fn shutter_ui(ui: &mut Ui, c: &mut Camera) {
     ui.horizontal(|ui| {
         ui.label("shutter (s)");
         ui.add(
@@ -399,8 +412,6 @@ fn camera_ui(ui: &mut Ui, model: &mut Model) {
                 .prefix("close "),
         );
     });
-    color_ui(ui, "ambient", &mut model.scene.ambient);
-    color_ui(ui, "background", &mut model.scene.background);
 }
 
 fn lights_ui(ui: &mut Ui, model: &mut Model) {
@@ -533,53 +544,59 @@ fn material_ui(ui: &mut Ui, m: &mut Material) {
         }
     });
     if let ShadingModel::Toon(t) = &mut m.model {
-        let mut bands = t.bands();
-        ui.horizontal(|ui| {
-            ui.label("bands");
-            if ui
-                .add(egui::DragValue::new(&mut bands).range(1..=MAX_TOON_BANDS))
-                .changed()
-            {
-                t.thresholds = Toon::even(bands).thresholds;
-            }
-        });
-        let mut edited = None;
-        ui.horizontal_wrapped(|ui| {
-            ui.label("thresholds");
-            for (j, v) in t.thresholds.iter_mut().enumerate() {
-                if ui
-                    .add(egui::DragValue::new(v).speed(0.005).range(0.001..=0.999))
-                    .changed()
-                {
-                    edited = Some(j);
-                }
-            }
-        });
-        if let Some(j) = edited {
-            fix_thresholds(&mut t.thresholds, j);
-        }
-        slider(
-            ui,
-            "specular threshold",
-            &mut t.specular_threshold,
-            0.0..=1.0,
-        );
-        let mut rim = t.rim.is_some();
-        if ui.checkbox(&mut rim, "rim light").changed() {
-            t.rim = rim.then(|| Rim {
-                color: Vec3::splat(0.3),
-                threshold: 0.6,
-            });
-        }
-        if let Some(r) = &mut t.rim {
-            color_ui(ui, "rim colour", &mut r.color);
-            slider(ui, "rim threshold", &mut r.threshold, 0.0..=1.0);
-        }
+        toon_ui(ui, t);
     }
     color_ui(ui, "outline colour", &mut m.outline_color);
     slider(ui, "outline width (px)", &mut m.outline_width_px, 0.0..=8.0);
     slider(ui, "reflectivity", &mut m.reflectivity, 0.0..=1.0);
     slider(ui, "roughness", &mut m.roughness, 0.0..=1.0);
+}
+
+/// A toon material's bands, their thresholds, the specular threshold and
+/// the rim light.
+fn toon_ui(ui: &mut Ui, t: &mut Toon) {
+    let mut bands = t.bands();
+    ui.horizontal(|ui| {
+        ui.label("bands");
+        if ui
+            .add(egui::DragValue::new(&mut bands).range(1..=MAX_TOON_BANDS))
+            .changed()
+        {
+            t.thresholds = Toon::even(bands).thresholds;
+        }
+    });
+    let mut edited = None;
+    ui.horizontal_wrapped(|ui| {
+        ui.label("thresholds");
+        for (j, v) in t.thresholds.iter_mut().enumerate() {
+            if ui
+                .add(egui::DragValue::new(v).speed(0.005).range(0.001..=0.999))
+                .changed()
+            {
+                edited = Some(j);
+            }
+        }
+    });
+    if let Some(j) = edited {
+        fix_thresholds(&mut t.thresholds, j);
+    }
+    slider(
+        ui,
+        "specular threshold",
+        &mut t.specular_threshold,
+        0.0..=1.0,
+    );
+    let mut rim = t.rim.is_some();
+    if ui.checkbox(&mut rim, "rim light").changed() {
+        t.rim = rim.then(|| Rim {
+            color: Vec3::splat(0.3),
+            threshold: 0.6,
+        });
+    }
+    if let Some(r) = &mut t.rim {
+        color_ui(ui, "rim colour", &mut r.color);
+        slider(ui, "rim threshold", &mut r.threshold, 0.0..=1.0);
+    }
 }
 
 #[cfg(test)]
