@@ -16,8 +16,8 @@
 // MAX_OUTLINE_RADIUS (outlines wider than this many pixels are drawn this
 // wide); TILE_TEXELS, the workgroup tile with its halo,
 // (ACCUMULATE_WORKGROUP + 2 * MAX_OUTLINE_RADIUS)^2 texels at most.
-// q is in front of p when its view depth is smaller by this fraction.
-const DEPTH_JUMP: f32 = 0.05;
+// DEPTH_JUMP (lib/limits.wgsl): q is in front of p when its view depth is
+// smaller by this fraction.
 // Normals more than 60 degrees apart make a crease.
 const CREASE_COS: f32 = 0.5;
 

@@ -42,9 +42,8 @@ const TEMPORAL_REJECT_CLIP: u32 = 1u;
 const MAX_DILATION: i32 = 2;
 // Smallest half-width of the clipping box (a flat neighbourhood).
 const CLIP_FLOOR: f32 = 1e-5;
-// q is in front of p when its view depth is smaller by this fraction (as in
-// the accumulate pass's outlines).
-const DEPTH_JUMP: f32 = 0.05;
+// DEPTH_JUMP (lib/limits.wgsl): q is in front of p when its view depth is
+// smaller by this fraction, as for the accumulate pass's outlines.
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<uniform> params: ReprojectUniforms;

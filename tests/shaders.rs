@@ -399,6 +399,7 @@ fn f32_constants_match() {
             ("CSG_EPS_ABS", CSG_EPS_ABS),
             ("CSG_EPS_REL", CSG_EPS_REL),
             ("FAR_DEPTH", FAR_DEPTH),
+            ("DEPTH_JUMP", celray::gpu::twins::DEPTH_JUMP),
         ] {
             let wgsl = wgsl_f32_constant(&module, name);
             assert_eq!(wgsl.to_bits(), value.to_bits(), "{file}: {name}");

@@ -9,6 +9,7 @@ use super::controller::NavMode;
 use super::layout::Layout;
 use super::model::Model;
 use super::timing::PassTimes;
+use crate::gpu::twins::MAX_OUTLINE_RADIUS;
 use crate::render::{AccelChoice, RenderMode, Temporal, ToneMap, MAX_BOUNCES, MAX_SPP};
 use crate::sampling::PixelPattern;
 use crate::scene::{
@@ -547,7 +548,13 @@ fn material_ui(ui: &mut Ui, m: &mut Material) {
         toon_ui(ui, t);
     }
     color_ui(ui, "outline colour", &mut m.outline_color);
-    slider(ui, "outline width (px)", &mut m.outline_width_px, 0.0..=8.0);
+    let widest = MAX_OUTLINE_RADIUS as f32;
+    slider(
+        ui,
+        "outline width (px)",
+        &mut m.outline_width_px,
+        0.0..=widest,
+    );
     slider(ui, "reflectivity", &mut m.reflectivity, 0.0..=1.0);
     slider(ui, "roughness", &mut m.roughness, 0.0..=1.0);
 }

@@ -30,8 +30,9 @@ pub struct FrameTimer {
     timer: GpuTimer,
     resolve: Span,
     egui: Span,
-    /// The views' pass times come in since the last frame result.
-    views: PassTimes,
+    /// Each view slot's pass times read back since the last frame result
+    /// (a later sample's replace an earlier one's: one sample per view).
+    views: Vec<Option<PassTimes>>,
     timing_this_frame: bool,
     pub latest: Option<PassTimes>,
 }
@@ -47,7 +48,7 @@ impl FrameTimer {
             timer,
             resolve,
             egui,
-            views: PassTimes::default(),
+            views: Vec::new(),
             timing_this_frame: false,
             latest: None,
         })
@@ -82,18 +83,37 @@ impl FrameTimer {
         self.timer.after_submit();
     }
 
-    /// Adds one view's sample pass times (from
-    /// [`crate::render::Renderer::collect_pass_times`]) to the next result.
-    pub fn add_view_times(&mut self, times: &[(&'static str, f64)]) {
-        self.views.views_sampled += 1;
+    /// Records view slot `slot`'s sample pass times (from
+    /// [`crate::render::Renderer::collect_pass_times`]) for the next result.
+    pub fn add_view_times(&mut self, slot: usize, times: &[(&'static str, f64)]) {
+        let mut view = PassTimes {
+            views_sampled: 1,
+            ..PassTimes::default()
+        };
         for (name, ms) in times {
             match *name {
-                "raster" => self.views.raster_ms += ms,
-                "trace" => self.views.trace_ms += ms,
-                "accumulate" | "reproject" => self.views.accumulate_ms += ms,
+                "raster" => view.raster_ms += ms,
+                "trace" => view.trace_ms += ms,
+                "accumulate" | "reproject" => view.accumulate_ms += ms,
                 other => log::warn!("window timing: a renderer pass {other:?} not counted"),
             }
         }
+        if self.views.len() <= slot {
+            self.views.resize(slot + 1, None);
+        }
+        self.views[slot] = Some(view);
+    }
+
+    /// The views' latest sample times summed (each view once), taken.
+    fn take_view_times(&mut self) -> PassTimes {
+        let mut sum = PassTimes::default();
+        for view in self.views.iter_mut().filter_map(Option::take) {
+            sum.raster_ms += view.raster_ms;
+            sum.trace_ms += view.trace_ms;
+            sum.accumulate_ms += view.accumulate_ms;
+            sum.views_sampled += view.views_sampled;
+        }
+        sum
     }
 
     /// Reads a finished frame result into [`FrameTimer::latest`] (call once
@@ -106,7 +126,7 @@ impl FrameTimer {
             let times = PassTimes {
                 resolve_ms: self.timer.span_ms(self.resolve).unwrap_or(0.0),
                 egui_ms: self.timer.span_ms(self.egui).unwrap_or(0.0),
-                ..std::mem::take(&mut self.views)
+                ..self.take_view_times()
             };
             self.latest = Some(times);
             came_in = Some(times);

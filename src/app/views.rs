@@ -273,9 +273,12 @@ impl ViewSlots {
 
     /// Gives each view's newly read-back pass times to `timer`.
     pub fn collect_pass_times(&mut self, timer: &mut FrameTimer) {
-        for renderer in self.slots.iter_mut().filter_map(|s| s.renderer.as_mut()) {
+        for (slot, s) in self.slots.iter_mut().enumerate() {
+            let Some(renderer) = s.renderer.as_mut() else {
+                continue;
+            };
             if let Some(times) = renderer.collect_pass_times() {
-                timer.add_view_times(times);
+                timer.add_view_times(slot, times);
             }
         }
     }
@@ -287,16 +290,20 @@ impl ViewSlots {
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
     ) -> Result<(), GpuError> {
+        let mut failed = None;
         for slot in &mut self.slots {
             let Some(renderer) = &mut slot.renderer else {
                 continue;
             };
             if slot.shown != Some(renderer.samples()) {
-                renderer.resolve_into(gpu, encoder, &slot.texture)?;
-                slot.shown = Some(renderer.samples());
+                // One view's failure is reported; the others still draw.
+                match renderer.resolve_into(gpu, encoder, &slot.texture) {
+                    Ok(()) => slot.shown = Some(renderer.samples()),
+                    Err(e) => failed = Some(e),
+                }
             }
         }
-        Ok(())
+        failed.map_or(Ok(()), Err)
     }
 
     /// New renderers for every shown view, built with the device's current

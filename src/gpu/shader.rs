@@ -58,6 +58,7 @@ pub fn f32_limits() -> Vec<F32Limit> {
         ("CSG_EPS_ABS", CSG_EPS_ABS),
         ("CSG_EPS_REL", CSG_EPS_REL),
         ("FAR_DEPTH", twins::FAR_DEPTH),
+        ("DEPTH_JUMP", twins::DEPTH_JUMP),
     ]
 }
 

@@ -59,6 +59,8 @@ pub const PASS_NAMES: [&str; 4] = ["raster", "trace", "accumulate", "reproject"]
 /// GPU time of a sample's passes: one timer, one span per pass.
 struct SampleTimer {
     timer: GpuTimer,
+    /// Whether the last sample was timed (its round had a free slot).
+    last_timed: bool,
     raster: Span,
     trace: Span,
     accumulate: Span,
@@ -71,6 +73,7 @@ impl SampleTimer {
             GpuTimer::new(gpu, "sample passes", PASS_NAMES)?;
         Some(SampleTimer {
             timer,
+            last_timed: false,
             raster,
             trace,
             accumulate,
@@ -544,7 +547,10 @@ impl Renderer {
             uniforms.background[2],
         ];
         let mode = self.settings.mode;
-        let timed = self.timer.as_mut().is_some_and(|t| t.timer.begin());
+        let timed = self.timer.as_mut().is_some_and(|t| {
+            t.last_timed = t.timer.begin();
+            t.last_timed
+        });
         let mut timer = self.timer.as_mut().filter(|_| timed);
         let traced = mode != RenderMode::Raster;
         if let Some((pass, _)) = &moving {
@@ -620,8 +626,8 @@ impl Renderer {
     /// not been read yet: call this after every timed sample.
     pub fn pass_times(&mut self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>, GpuError> {
         match &mut self.timer {
-            Some(t) => t.timer.wait(gpu),
-            None => Ok(Vec::new()),
+            Some(t) if t.last_timed => t.timer.wait(gpu),
+            _ => Ok(Vec::new()),
         }
     }
 
