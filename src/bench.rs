@@ -685,11 +685,11 @@ fn missing_helmet(args: &BenchArgs) -> String {
     )
 }
 
-/// Times the floor kernel against 1 and 64 spheres and records floor_1 as
-/// the denominator of every floor_ratio of this run.
 /// The fewest dispatches the floor kernel's median is taken over.
 const MIN_FLOOR_FRAMES: u32 = 20;
 
+/// Times the floor kernel against 1 and 64 spheres and records floor_1 as
+/// the denominator of every floor_ratio of this run.
 fn floor_suite(gpu: &Gpu, args: &BenchArgs, r: &mut Report) -> anyhow::Result<()> {
     md!(
         r,

@@ -718,12 +718,12 @@ fn compare(args: CompareArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Re
 
 #[cfg(feature = "app")]
 fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<()> {
-    use celray::app::{self, Layout, ViewOptions};
+    use celray::app::{self, Layout, ViewOptions, WINDOW_VIEW_SLOTS};
     use celray::view::ViewSpec;
     let views = ViewSpec::parse_list(&args.views)?;
-    if views.len() > 4 {
+    if views.len() > WINDOW_VIEW_SLOTS {
         bail!(
-            "--views {:?}: the window shows at most 4 views (use `celray compare` for more)",
+            "--views {:?}: the window shows at most {WINDOW_VIEW_SLOTS} views (use `celray compare` for more)",
             args.views
         );
     }

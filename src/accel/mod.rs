@@ -415,8 +415,9 @@ pub(crate) enum Stopped<B> {
     Leaf(B),
 }
 
-/// The one BVH stack traversal of the CPU reference (the loop the shaders'
-/// traversal mirrors): from `root`, pop a node, count one step in `steps`
+/// The one BVH stack traversal of the CPU reference (the shaders' loop
+/// finds the same hits, but tests both children's boxes before pushing
+/// them, so its step counts differ): from `root`, pop a node, count one step in `steps`
 /// (giving up past MAX_TRAVERSAL_STEPS), skip it when the ray misses its
 /// box in (t_min, t_max), push an inner node's two children in `order`
 /// (children the ray misses are still pushed; the pop tests them), and hand

@@ -37,6 +37,7 @@ use crate::render::RenderSettings;
 use crate::scene::Scene;
 use crate::view::ViewSpec;
 pub use layout::Layout;
+pub use views::WINDOW_VIEW_SLOTS;
 
 /// The controls, as shown in the panel and in README.md.
 pub const CONTROLS: &[(&str, &str)] = &[

@@ -16,7 +16,7 @@ use crate::scene::Camera;
 use crate::view::ViewSpec;
 
 /// The number of view slots (the most views a layout shows).
-pub(super) const MAX_VIEWS: usize = 4;
+pub const WINDOW_VIEW_SLOTS: usize = 4;
 
 /// What a view's renderer was last brought up to date with: a panel edit
 /// changes one of these, and [`ViewSlots::sync`] applies what changed.
@@ -79,7 +79,7 @@ impl ViewSlots {
         mut egui: Option<&mut egui_wgpu::Renderer>,
         timed: bool,
     ) -> ViewSlots {
-        let slots = (0..MAX_VIEWS)
+        let slots = (0..WINDOW_VIEW_SLOTS)
             .map(|_| {
                 let texture = view_texture(gpu, (1, 1), format);
                 let tex_id = egui.as_mut().map(|r| {

@@ -1,6 +1,8 @@
-//! Copying textures and buffers back to the CPU: the one place that maps a
-//! staging buffer ([`read_buffer`]); [`copy_and_read`] stages a GPU-only
-//! buffer first, [`read_texture`] a texture.
+//! Copying textures and buffers back to the CPU, waiting for them: the one
+//! blocking read of a staging buffer ([`read_buffer`]); [`copy_and_read`]
+//! stages a GPU-only buffer first, [`read_texture`] a texture. (The GPU
+//! timer maps its own small buffer without waiting, so that a window frame
+//! never stalls on it.)
 
 use crate::gpu::{Gpu, GpuError};
 
