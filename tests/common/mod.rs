@@ -236,3 +236,44 @@ pub fn assert_hits_match_cpu(
         "{grazing} grazing disagreements, more than 0.1% of rays"
     );
 }
+
+/// 1,000 instances of every kind of analytic shape and the spot mesh, and
+/// with `with_csg` also a CSG shape with a closed-mesh leaf, under random
+/// rotations and non-uniform scales (the same scene for the same flag).
+pub fn random_instances(with_csg: bool) -> Scene {
+    let mut shapes = vec!["ball", "crate", "can", "cone", "quad", "disk", "cow"];
+    let mut carved = "";
+    if with_csg {
+        shapes.push("carved");
+        carved = r#",
+                      "carved": Difference(Box(half_extents: (0.6, 0.6, 0.6)), Mesh(path: "assets/models/spot/spot_triangulated.obj", transform: (scale: (1.2, 1.2, 1.2))))"#;
+    }
+    let mut instances = String::new();
+    for i in 0..1000u32 {
+        let r = |k: u32| celray::sampling::uniform(i, 17, k);
+        let shape = shapes[(r(0) * shapes.len() as f32) as usize % shapes.len()];
+        instances += &format!(
+            "(shape: \"{shape}\", material: \"m\", transform: (translate: ({:.4}, {:.4}, {:.4}), rotate_deg: ({:.2}, {:.2}, {:.2}), scale: ({:.3}, {:.3}, {:.3}))),\n",
+            r(1) * 20.0 - 10.0, r(2) * 20.0 - 10.0, r(3) * 20.0 - 10.0,
+            r(4) * 360.0, r(5) * 360.0, r(6) * 360.0,
+            0.3 + r(7) * 1.2, 0.3 + r(8) * 1.2, 0.3 + r(9) * 1.2,
+        );
+    }
+    let ron = format!(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 30.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 64, height: 64),
+            lights: [Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: {{ "m": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) }},
+            shapes: {{ "ball": Sphere(radius: 0.7), "crate": Box(half_extents: (0.5, 0.3, 0.6)), "can": Cylinder(radius: 0.4, height: 1.2),
+                      "cone": Cone(radius: 0.5, height: 1.0), "quad": Plane(Quad(half_size: (0.8, 0.5))), "disk": Plane(Disk(radius: 0.6)),
+                      "cow": Mesh(path: "assets/models/spot/spot_triangulated.obj"){carved} }},
+            instances: [{instances}],
+        )"#
+    );
+    Scene::from_ron_str(
+        &ron,
+        "random.ron",
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+    )
+    .unwrap_or_else(|e| panic!("{e}"))
+}
