@@ -704,6 +704,31 @@ fn write_sampler_quad(dir: &Path, lo: f32, hi: f32, sampler: &str) {
     std::fs::write(dir.join("quad.gltf"), gltf).unwrap();
 }
 
+/// The quad of [`write_sampler_quad`] (texture coordinates `lo`..`hi`,
+/// glTF sampler fields `sampler`) rendered with [`sampler_quad_scene`] in
+/// raster and in raytrace mode at pixel centres: (mode, RGBA8 image) each.
+fn sampler_quad_renders(
+    gpu: &celray::gpu::Gpu,
+    tag: &str,
+    lo: f32,
+    hi: f32,
+    sampler: &str,
+) -> Vec<(RenderMode, Vec<u8>)> {
+    let dir = temp_dir(tag);
+    write_sampler_quad(&dir, lo, hi, sampler);
+    let scene = sampler_quad_scene(&dir);
+    [RenderMode::Raster, RenderMode::Raytrace]
+        .into_iter()
+        .map(|mode| {
+            let settings = RenderSettings {
+                mode,
+                ..pixel_centre_settings(&scene)
+            };
+            (mode, render(gpu, scene.clone(), settings).0)
+        })
+        .collect()
+}
+
 /// The glTF quad of [`write_sampler_quad`] seen head-on from 4 units up
 /// with a view 64/30 units wide in a 64 px image: the quad (2 units)
 /// covers pixels 2..62 on both axes, 30 px per unit, image x along +x and
@@ -767,15 +792,14 @@ fn gltf_wrap_modes_show_the_wrapped_texel() {
         ("MIRRORED_REPEAT", 33648, "REPEAT", 10497),
     ];
     for (s_name, s, t_name, t) in cases {
-        let dir = temp_dir(&format!("wrap-{s_name}"));
-        write_sampler_quad(&dir, -1.0, 2.0, &format!(r#""wrapS": {s}, "wrapT": {t}"#));
-        let scene = sampler_quad_scene(&dir);
-        for mode in [RenderMode::Raster, RenderMode::Raytrace] {
-            let settings = RenderSettings {
-                mode,
-                ..pixel_centre_settings(&scene)
-            };
-            let (img, _) = render(&gpu, scene.clone(), settings);
+        let tag = format!("wrap-{s_name}");
+        for (mode, img) in sampler_quad_renders(
+            &gpu,
+            &tag,
+            -1.0,
+            2.0,
+            &format!(r#""wrapS": {s}, "wrapT": {t}"#),
+        ) {
             for j in 0..12u32 {
                 for i in 0..12u32 {
                     let (px, py) = (4 + 5 * i, 4 + 5 * j);
@@ -809,15 +833,10 @@ fn gltf_nearest_mag_filter_gives_hard_texel_edges() {
     let gpu = gpu();
     let texels: Vec<[u8; 4]> = (0..16).map(|k| texel4(k % 4, k / 4)).collect();
     for (filter, nearest) in [(9728, true), (9729, false)] {
-        let dir = temp_dir(&format!("mag-{filter}"));
-        write_sampler_quad(&dir, 0.0, 1.0, &format!(r#""magFilter": {filter}"#));
-        let scene = sampler_quad_scene(&dir);
-        for mode in [RenderMode::Raster, RenderMode::Raytrace] {
-            let settings = RenderSettings {
-                mode,
-                ..pixel_centre_settings(&scene)
-            };
-            let (img, _) = render(&gpu, scene.clone(), settings);
+        let tag = format!("mag-{filter}");
+        for (mode, img) in
+            sampler_quad_renders(&gpu, &tag, 0.0, 1.0, &format!(r#""magFilter": {filter}"#))
+        {
             let mut blended = 0;
             for py in 2..62u32 {
                 for px in 2..62u32 {
@@ -878,15 +897,10 @@ fn gltf_min_filter_picks_level_and_texel() {
             .any(|t| (0..3).all(|c| got[c].abs_diff(t[c]) <= 1))
     };
     for (filter, level) in [(9728, Some(0)), (9984, Some(1)), (9987, None)] {
-        let dir = temp_dir(&format!("min-{filter}"));
-        write_sampler_quad(&dir, 0.0, 32.0, &format!(r#""minFilter": {filter}"#));
-        let scene = sampler_quad_scene(&dir);
-        for mode in [RenderMode::Raster, RenderMode::Raytrace] {
-            let settings = RenderSettings {
-                mode,
-                ..pixel_centre_settings(&scene)
-            };
-            let (img, _) = render(&gpu, scene.clone(), settings);
+        let tag = format!("min-{filter}");
+        for (mode, img) in
+            sampler_quad_renders(&gpu, &tag, 0.0, 32.0, &format!(r#""minFilter": {filter}"#))
+        {
             let mut off_palette = 0;
             for py in 2..62u32 {
                 for px in 2..62u32 {
