@@ -17,7 +17,7 @@ use glam::{Mat4, Vec3};
 use celray::gpu::twins::GpuRay;
 use celray::gpu::Gpu;
 use celray::render::ray_batch::RayBatch;
-use celray::render::{RenderMode, RenderSettings, Renderer};
+use celray::render::{AccelChoice, RenderMode, RenderSettings, Renderer};
 use celray::scene::{Instance, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
@@ -290,6 +290,40 @@ pub(crate) fn primary_rays(renderer: &Renderer, w: u32, h: u32) -> Vec<GpuRay> {
         .collect()
 }
 
+/// A raytrace-mode renderer of `scene` at the bench size, one sample,
+/// walking `accel`; how long building it took (ms); and its camera's
+/// primary rays, one per pixel centre.
+pub(crate) fn ray_renderer(
+    gpu: &Gpu,
+    scene: Scene,
+    args: &BenchArgs,
+    accel: AccelChoice,
+) -> anyhow::Result<(Renderer, f64, Vec<GpuRay>)> {
+    let settings = RenderSettings {
+        width: args.width,
+        height: args.height,
+        spp: 1,
+        mode: RenderMode::Raytrace,
+        accel,
+        ..RenderSettings::default()
+    };
+    let start = Instant::now();
+    let renderer = Renderer::new(gpu, scene, settings)?;
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let rays = primary_rays(&renderer, args.width, args.height);
+    Ok((renderer, build_ms, rays))
+}
+
+/// The best of 3 timings of `f`, after one untimed warm-up call.
+pub(crate) fn best_of(mut f: impl FnMut() -> anyhow::Result<f64>) -> anyhow::Result<f64> {
+    f()?;
+    let mut best = f64::MAX;
+    for _ in 0..3 {
+        best = best.min(f()?);
+    }
+    Ok(best)
+}
+
 /// Closest-hit throughput of the primary rays of `scene`'s camera (one ray
 /// per pixel centre, by the ray-batch kernel), and the trace pass's time in
 /// raytrace mode (primary ray plus a shadow ray per lit hit).
@@ -301,28 +335,16 @@ fn ray_row(
     args: &BenchArgs,
     r: &Report,
 ) -> anyhow::Result<()> {
-    let (w, h) = (args.width, args.height);
-    let settings = RenderSettings {
-        width: w,
-        height: h,
-        spp: 1,
-        mode: RenderMode::Raytrace,
-        ..Default::default()
-    };
-    let build = Instant::now();
-    let mut renderer = Renderer::new(gpu, scene.clone(), settings)?;
-    let build_ms = build.elapsed().as_secs_f64() * 1e3;
-    let rays = primary_rays(&renderer, w, h);
+    let (mut renderer, build_ms, rays) =
+        ray_renderer(gpu, scene.clone(), args, RenderSettings::default().accel)?;
     let batch = RayBatch::new(gpu)?;
     let buffers = renderer.scene_buffers();
-    batch.trace_timed(gpu, buffers, &rays)?; // warm-up
-    let mut best = f64::MAX;
     let mut hits = 0;
-    for _ in 0..3 {
+    let best = best_of(|| {
         let (h, s) = batch.trace_timed(gpu, buffers, &rays)?;
         hits = h.iter().filter(|h| h.instance != u32::MAX).count();
-        best = best.min(s);
-    }
+        Ok(s)
+    })?;
     let accel = &buffers.accel;
     let bytes = accel.nodes.len() * 32
         + accel.triangles.len() * 96

@@ -14,17 +14,7 @@ use celray::render::{AccelChoice, RenderMode, RenderSettings, Renderer};
 use celray::scene::Scene;
 
 use super::report::{md, Report};
-use super::{grid, mesh_scene, primary_rays, BenchArgs};
-
-/// Best of 3 (after a warm-up) seconds of `f`.
-fn best_of(mut f: impl FnMut() -> anyhow::Result<f64>) -> anyhow::Result<f64> {
-    f()?;
-    let mut best = f64::MAX;
-    for _ in 0..3 {
-        best = best.min(f()?);
-    }
-    Ok(best)
-}
+use super::{best_of, grid, mesh_scene, ray_renderer, BenchArgs};
 
 /// GPU milliseconds of the trace pass, raytrace mode, best of 3 samples.
 fn trace_ms(gpu: &Gpu, scene: &Scene, args: &BenchArgs, accel: AccelChoice) -> anyhow::Result<f64> {
@@ -56,19 +46,8 @@ fn row(
     args: &BenchArgs,
     r: &Report,
 ) -> anyhow::Result<()> {
-    let (w, h) = (args.width, args.height);
-    let settings = RenderSettings {
-        width: w,
-        height: h,
-        spp: 1,
-        mode: RenderMode::Raytrace,
-        accel: AccelChoice::Software,
-        ..RenderSettings::default()
-    };
-    let start = Instant::now();
-    let renderer = Renderer::new(gpu, scene.clone(), settings)?;
-    let software_build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let rays = primary_rays(&renderer, w, h);
+    let (renderer, software_build_ms, rays) =
+        ray_renderer(gpu, scene.clone(), args, AccelChoice::Software)?;
     let buffers = renderer.scene_buffers();
     let software = RayBatch::new(gpu)?;
     let sw_s = best_of(|| Ok(software.trace_timed(gpu, buffers, &rays)?.1))?;
