@@ -7,7 +7,6 @@ mod common;
 
 use celray::capture::Frame;
 use celray::gpu::shader::Traversal;
-use celray::gpu::twins::GpuRay;
 use celray::gpu::Gpu;
 use celray::render::driver_accel::DriverAccel;
 use celray::render::ray_batch::RayBatch;
@@ -57,20 +56,7 @@ fn driver_hits_match_cpu_reference_on_random_rays() {
     let buffers = SceneBuffers::upload(&gpu, &scene).unwrap();
     let driver = DriverAccel::build(&gpu, &scene, &buffers).unwrap_or_else(|e| panic!("{e}"));
     let accel = &buffers.accel;
-    let rays: Vec<GpuRay> = (0..10_000u32)
-        .map(|i| {
-            let o = Vec3::new(uniform(i, 1, 0), uniform(i, 1, 1), uniform(i, 1, 2)) * 30.0
-                - Vec3::splat(15.0);
-            // Aim near a random point of the instance cloud so most rays hit.
-            let aim = Vec3::new(uniform(i, 2, 0), uniform(i, 2, 1), uniform(i, 2, 2)) * 20.0
-                - Vec3::splat(10.0);
-            let d = (aim - o).normalize();
-            GpuRay {
-                origin: o.extend(0.0).to_array(),
-                dir: d.extend(1e30).to_array(),
-            }
-        })
-        .collect();
+    let rays = random_rays(10_000);
     let batch = RayBatch::with_traversal(&gpu, Traversal::Driver).unwrap();
     let (hits, _) = batch
         .trace_driver_timed(&gpu, &buffers, &driver, &rays)

@@ -3,10 +3,8 @@
 
 mod common;
 
-use celray::gpu::twins::GpuRay;
 use celray::render::ray_batch::RayBatch;
 use celray::render::{RenderMode, RenderSettings};
-use celray::sampling::uniform;
 use celray::scene::Scene;
 use common::*;
 use glam::{DMat4, DVec3, Mat4, Vec3};
@@ -157,20 +155,7 @@ fn gpu_traversal_matches_cpu_reference_on_random_rays() {
     let buffers = renderer.scene_buffers();
     let accel = &buffers.accel;
 
-    let rays: Vec<GpuRay> = (0..10_000u32)
-        .map(|i| {
-            let o = Vec3::new(uniform(i, 1, 0), uniform(i, 1, 1), uniform(i, 1, 2)) * 30.0
-                - Vec3::splat(15.0);
-            // Aim near a random point of the instance cloud so most rays hit.
-            let aim = Vec3::new(uniform(i, 2, 0), uniform(i, 2, 1), uniform(i, 2, 2)) * 20.0
-                - Vec3::splat(10.0);
-            let d = (aim - o).normalize();
-            GpuRay {
-                origin: o.extend(0.0).to_array(),
-                dir: d.extend(1e30).to_array(),
-            }
-        })
-        .collect();
+    let rays = random_rays(10_000);
     let hits = RayBatch::new(&gpu)
         .unwrap()
         .trace(&gpu, buffers, &rays)

@@ -277,3 +277,23 @@ pub fn random_instances(with_csg: bool) -> Scene {
     )
     .unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// `n` rays from random points of a 30-unit cube around the origin, each
+/// aimed at a random point of [`random_instances`]' 20-unit cloud so that
+/// most of them hit (unbounded: t_max 1e30).
+pub fn random_rays(n: u32) -> Vec<celray::gpu::twins::GpuRay> {
+    use celray::sampling::uniform;
+    (0..n)
+        .map(|i| {
+            let o = Vec3::new(uniform(i, 1, 0), uniform(i, 1, 1), uniform(i, 1, 2)) * 30.0
+                - Vec3::splat(15.0);
+            let aim = Vec3::new(uniform(i, 2, 0), uniform(i, 2, 1), uniform(i, 2, 2)) * 20.0
+                - Vec3::splat(10.0);
+            let d = (aim - o).normalize();
+            celray::gpu::twins::GpuRay {
+                origin: o.extend(0.0).to_array(),
+                dir: d.extend(1e30).to_array(),
+            }
+        })
+        .collect()
+}
