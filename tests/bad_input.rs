@@ -1,41 +1,23 @@
 //! Bad input on the command line, end to end: counts past their documented
 //! bounds, setting names that do not exist, scene paths that cannot be
-//! read, scenes nested too deeply, an interrupted render, and driver noise. Each refusal is exit status 1 with
-//! one message naming the bound or the file, never a panic, and leaves no
-//! output file behind.
+//! read, scenes nested too deeply, an interrupted render, and driver
+//! noise. Each refusal is exit status 1 with one message naming the bound
+//! or the file, never a panic, and leaves no output file behind.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 
 use celray::render::{RenderMode, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES, MAX_SPP};
 use celray::sampling::PixelPattern;
 use celray::scene::{MAX_IMAGE_SIZE, MAX_NESTING};
 
-fn command(args: &[&str], cwd: &Path) -> Command {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_celray"));
-    cmd.args(args).current_dir(cwd);
-    if std::env::var_os("CELRAY_ADAPTER").is_none() {
-        cmd.env("CELRAY_ADAPTER", "software");
-    }
-    cmd
-}
+mod common;
 
-fn celray(args: &[&str], cwd: &Path) -> Output {
-    command(args, cwd).output().expect("run celray")
-}
+use common::cli::{celray, command, stderr};
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("bad_input")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
+    common::cli::scratch("bad_input", name)
 }
 
 /// The names of the files in `dir`, sorted.

@@ -1,29 +1,14 @@
 //! The command line end to end: images of the requested size, identical bytes
 //! for identical inputs, and clear errors with a non-zero exit on bad input.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
-fn celray(args: &[&str], cwd: &Path) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_celray"));
-    cmd.args(args).current_dir(cwd);
-    if std::env::var_os("CELRAY_ADAPTER").is_none() {
-        cmd.env("CELRAY_ADAPTER", "software");
-    }
-    cmd.output().expect("run celray")
-}
+mod common;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("cli")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use common::cli::{celray, stderr};
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
+fn scratch(name: &str) -> std::path::PathBuf {
+    common::cli::scratch("cli", name)
 }
 
 #[test]

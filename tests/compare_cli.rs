@@ -2,24 +2,19 @@
 //! object) per pair of views, and clear errors with a non-zero exit.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
+
+mod common;
 
 fn celray(args: &[&str], cwd: &Path) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_celray"));
-    cmd.args(args).current_dir(cwd).env("NODEVICE_SELECT", "1");
-    if std::env::var_os("CELRAY_ADAPTER").is_none() {
-        cmd.env("CELRAY_ADAPTER", "software");
-    }
-    cmd.output().expect("run celray")
+    common::cli::command(args, cwd)
+        .env("NODEVICE_SELECT", "1")
+        .output()
+        .expect("run celray")
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("compare")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::cli::scratch("compare", name)
 }
 
 const SIZE: [&str; 4] = ["--width", "120", "--height", "68"];

@@ -3,6 +3,8 @@
 //! test file runs (the mirror check, GPU hits against the CPU reference).
 #![allow(dead_code)]
 
+pub mod cli;
+
 use glam::{DVec3, Vec2, Vec3};
 
 use celray::gpu::{AdapterChoice, Gpu};
