@@ -27,9 +27,19 @@ var<workgroup> tile_id: array<u32, TILE_TEXELS>;
 var<workgroup> tile_normal_depth: array<vec4<f32>, TILE_TEXELS>;
 var<workgroup> tile_material: array<u32, TILE_TEXELS>;
 var<workgroup> tile_width: array<f32, TILE_TEXELS>;
+// Set while loading the tile when some texel of it could draw an outline
+// on another pixel: an object texel whose material's outline is at least
+// 1 px wide (a narrower one reaches no other pixel). A tile without one
+// skips the search: the floor and the sky, outlined by nothing, are most
+// of many scenes. (Also skipping tiles of one object with close depths and
+// normals, through per-tile bounds kept with ten workgroup atomics per
+// invocation, made the kernel slower: 40 ms against 22 on the default
+// scene, docs/performance.md.)
+var<workgroup> tile_has_source: atomic<u32>;
 
 fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
     let size = vec2<i32>(frame.size_px);
+    var source = false;
     for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
         let q = origin + vec2<i32>(k % span, k / span);
         var id = 0u;
@@ -44,10 +54,14 @@ fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
                 width = materials[material].outline_width_px;
             }
         }
+        source = source || width >= 1.0;
         tile_id[k] = id;
         tile_normal_depth[k] = nd;
         tile_material[k] = material;
         tile_width[k] = width;
+    }
+    if source {
+        atomicOr(&tile_has_source, 1u);
     }
 }
 
@@ -108,7 +122,7 @@ fn main(
         return;
     }
     var c = textureLoad(color_tex, vec2<i32>(gid.xy), 0).rgb;
-    if r > 0 {
+    if r > 0 && atomicLoad(&tile_has_source) != 0u {
         let o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
         c = mix(c, o.rgb, o.a);
     }

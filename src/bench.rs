@@ -256,6 +256,18 @@ fn raster_suite(
         let case = format!("default_{}", mode.name());
         row("default scene", Scene::builtin_default(), mode, Some(&case))?;
     }
+    // Wide outlines: the accumulate pass searches a 17 x 17 neighbourhood
+    // (MAX_OUTLINE_RADIUS 8) wherever a tile holds an outlined object.
+    let mut wide = Scene::builtin_default();
+    for m in wide.materials.iter_mut().filter(|m| m.outline_width_px > 0.0) {
+        m.outline_width_px = 8.0;
+    }
+    row(
+        "default scene, outlines 8 px",
+        wide,
+        RenderMode::Raster,
+        Some("outline_8px_raster"),
+    )?;
     if let Some(helmet) = helmet {
         row(
             "FlightHelmet, anchor camera",
