@@ -69,10 +69,17 @@ fn vs_main(
     out.specular = vec4<f32>(materials[material].specular_color, materials[material].specular_threshold);
     out.rim = vec4<f32>(materials[material].rim_color, materials[material].rim_threshold);
     out.model_bands = vec2<u32>(materials[material].model, materials[material].band_count);
+    // Only the thresholds the scene's materials fill (lib/shading.wgsl).
     out.thresholds0 = materials[material].thresholds[0];
-    out.thresholds1 = materials[material].thresholds[1];
-    out.thresholds2 = materials[material].thresholds[2];
-    out.thresholds3 = materials[material].thresholds[3];
+    if TOON_THRESHOLD_VECS > 1u {
+        out.thresholds1 = materials[material].thresholds[1];
+    }
+    if TOON_THRESHOLD_VECS > 2u {
+        out.thresholds2 = materials[material].thresholds[2];
+    }
+    if TOON_THRESHOLD_VECS > 3u {
+        out.thresholds3 = materials[material].thresholds[3];
+    }
     return out;
 }
 

@@ -259,7 +259,11 @@ fn raster_suite(
     // Wide outlines: the accumulate pass searches a 17 x 17 neighbourhood
     // (MAX_OUTLINE_RADIUS 8) wherever a tile holds an outlined object.
     let mut wide = Scene::builtin_default();
-    for m in wide.materials.iter_mut().filter(|m| m.outline_width_px > 0.0) {
+    for m in wide
+        .materials
+        .iter_mut()
+        .filter(|m| m.outline_width_px > 0.0)
+    {
         m.outline_width_px = 8.0;
     }
     row(

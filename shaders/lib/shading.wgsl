@@ -24,6 +24,13 @@ fn sample_light(light: GpuLight, p: vec3<f32>) -> LightSample {
     return s;
 }
 
+// How many of a material's four vec4s of toon thresholds any material of
+// the scene fills (1 to 4), fixed per pipeline: the slots beyond hold 2.0
+// and count nothing, so leaving them out changes no band, and the CPU
+// driver neither loads nor compares them (each field of a material is a
+// gather per pixel there). Pipelines that do not set it read all four.
+override TOON_THRESHOLD_VECS: u32 = 4u;
+
 // The toon band of a diffuse term d = max(N.L, 0): the number of thresholds
 // at or below d, so band 0 holds the unlit side and the darkest lit band.
 // Unused threshold slots hold 2.0, which d never reaches; counting with
@@ -31,8 +38,16 @@ fn sample_light(light: GpuLight, p: vec3<f32>) -> LightSample {
 fn toon_band(m: GpuMaterial, d: f32) -> u32 {
     let dv = vec4<f32>(d);
     let ones = vec4<f32>(1.0);
-    let count = dot(step(m.thresholds[0], dv), ones) + dot(step(m.thresholds[1], dv), ones)
-        + dot(step(m.thresholds[2], dv), ones) + dot(step(m.thresholds[3], dv), ones);
+    var count = dot(step(m.thresholds[0], dv), ones);
+    if TOON_THRESHOLD_VECS > 1u {
+        count += dot(step(m.thresholds[1], dv), ones);
+    }
+    if TOON_THRESHOLD_VECS > 2u {
+        count += dot(step(m.thresholds[2], dv), ones);
+    }
+    if TOON_THRESHOLD_VECS > 3u {
+        count += dot(step(m.thresholds[3], dv), ones);
+    }
     return u32(count);
 }
 

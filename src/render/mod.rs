@@ -217,7 +217,8 @@ impl Renderer {
     }
 
     fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
-        self.raster.prepare(gpu, &self.frame, &self.buffers);
+        self.raster
+            .prepare(gpu, &self.frame, &self.buffers, &self.scene.materials);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         let traced = self.trace.prepare(
             gpu,
@@ -375,6 +376,8 @@ impl Renderer {
         self.scene = scene;
         // Edited materials or lights may need other code in the trace kernel
         // (e.g. a first reflective material).
+        self.raster
+            .prepare(gpu, &self.frame, &self.buffers, &self.scene.materials);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         self.trace.select_variant(gpu, variant)?;
         self.reset();

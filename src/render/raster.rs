@@ -5,19 +5,22 @@
 
 use crate::gpu::twins::{Vertex, FAR_DEPTH};
 use crate::gpu::{shader, Gpu, GpuError};
-use crate::render::scene_buffers::{scene_layout, Cull, SceneBuffers, PASS_GROUP, SCENE_GROUP};
+use std::collections::HashMap;
+
+use crate::render::scene_buffers::{
+    scene_layout, toon_threshold_vecs, Cull, SceneBuffers, PASS_GROUP, SCENE_GROUP,
+};
 use crate::render::settings::RenderMode;
 use crate::render::targets::{
     Targets, ALBEDO_FORMAT, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT,
 };
+use crate::scene::Material;
 
 pub struct RasterPass {
-    /// One pipeline per [`Cull`] mode (back, front, none), without and with
-    /// the texture code (entry points `vs_main`/`fs_main` or
-    /// `vs_textured`/`fs_textured`), each built the first time a scene
-    /// needs it.
-    pipelines: [Option<[wgpu::RenderPipeline; 3]>; 2],
-    textures: bool,
+    /// One pipeline per [`Cull`] mode (back, front, none) for each
+    /// [`RasterVariant`] a scene has needed, built the first time.
+    pipelines: HashMap<RasterVariant, [wgpu::RenderPipeline; 3]>,
+    variant: RasterVariant,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
     layout: wgpu::BindGroupLayout,
@@ -25,6 +28,16 @@ pub struct RasterPass {
 }
 
 use crate::gpu::layout::uniform_entry;
+
+/// What a scene needs compiled into the raster shaders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+struct RasterVariant {
+    /// The texture code (entry points `vs_textured`/`fs_textured` rather
+    /// than `vs_main`/`fs_main`).
+    textures: bool,
+    /// `TOON_THRESHOLD_VECS` (lib/shading.wgsl), 1 to 4.
+    toon_threshold_vecs: u8,
+}
 
 /// Group 1 of the raster pass, binding by binding as `shaders/raster.wgsl`
 /// declares it.
@@ -51,8 +64,8 @@ impl RasterPass {
                         immediate_size: 0,
                     });
             RasterPass {
-                pipelines: [None, None],
-                textures: false,
+                pipelines: HashMap::new(),
+                variant: RasterVariant::default(),
                 module,
                 pipeline_layout,
                 layout,
@@ -62,17 +75,22 @@ impl RasterPass {
     }
 
     /// Builds the pipelines the scene needs (once) and binds the frame
-    /// uniforms (the scene's group is the scene's own).
-    pub fn prepare(&mut self, gpu: &Gpu, frame: &wgpu::Buffer, scene: &SceneBuffers) {
-        self.textures = scene.uses_textures;
-        let slot = usize::from(self.textures);
-        if self.pipelines[slot].is_none() {
-            self.pipelines[slot] = Some(raster_pipelines(
-                gpu,
-                &self.pipeline_layout,
-                &self.module,
-                self.textures,
-            ));
+    /// uniforms (the scene's group is the scene's own). Called again when
+    /// materials change: their toon thresholds choose the variant.
+    pub fn prepare(
+        &mut self,
+        gpu: &Gpu,
+        frame: &wgpu::Buffer,
+        scene: &SceneBuffers,
+        materials: &[Material],
+    ) {
+        self.variant = RasterVariant {
+            textures: scene.uses_textures,
+            toon_threshold_vecs: toon_threshold_vecs(materials),
+        };
+        if !self.pipelines.contains_key(&self.variant) {
+            let built = raster_pipelines(gpu, &self.pipeline_layout, &self.module, self.variant);
+            self.pipelines.insert(self.variant, built);
         }
         let entries = [wgpu::BindGroupEntry {
             binding: 0,
@@ -134,7 +152,7 @@ impl RasterPass {
                     },
                 ),
                 attachment(&id, wgpu::Color::TRANSPARENT),
-                if self.textures {
+                if self.variant.textures {
                     attachment(&albedo, wgpu::Color::TRANSPARENT)
                 } else {
                     None
@@ -163,7 +181,7 @@ impl RasterPass {
             RenderMode::Hybrid => d.is_mesh,
             RenderMode::Raytrace => false,
         };
-        let Some(pipelines) = &self.pipelines[usize::from(self.textures)] else {
+        let Some(pipelines) = self.pipelines.get(&self.variant) else {
             return;
         };
         for d in scene.draws.iter().filter(drawn) {
@@ -183,13 +201,22 @@ impl RasterPass {
     }
 }
 
-/// The three cull-mode pipelines of one variant (with or without textures).
+/// The three cull-mode pipelines of one variant.
 fn raster_pipelines(
     gpu: &Gpu,
     pipeline_layout: &wgpu::PipelineLayout,
     module: &wgpu::ShaderModule,
-    textures: bool,
+    variant: RasterVariant,
 ) -> [wgpu::RenderPipeline; 3] {
+    let textures = variant.textures;
+    let constants = [(
+        "TOON_THRESHOLD_VECS",
+        f64::from(variant.toon_threshold_vecs),
+    )];
+    let options = || wgpu::PipelineCompilationOptions {
+        constants: &constants,
+        ..Default::default()
+    };
     // Untextured scenes run the entry points without texture varyings.
     let (vs, fs) = if textures {
         ("vs_textured", "fs_textured")
@@ -211,7 +238,7 @@ fn raster_pipelines(
                 vertex: wgpu::VertexState {
                     module,
                     entry_point: Some(vs),
-                    compilation_options: Default::default(),
+                    compilation_options: options(),
                     buffers: &[Some(Vertex::LAYOUT)],
                 },
                 primitive: wgpu::PrimitiveState {
@@ -231,7 +258,7 @@ fn raster_pipelines(
                 fragment: Some(wgpu::FragmentState {
                     module,
                     entry_point: Some(fs),
-                    compilation_options: Default::default(),
+                    compilation_options: options(),
                     targets: &[
                         target(COLOR_FORMAT),
                         target(NORMAL_DEPTH_FORMAT),

@@ -126,6 +126,24 @@ pub struct SceneBuffers {
     pub bind_group: wgpu::BindGroup,
 }
 
+/// How many vec4s of toon thresholds (four to a vec4, as
+/// [`material_to_gpu`] packs them) the materials fill: at least 1, at most
+/// 4. The raster and trace pipelines are built for this many
+/// (`TOON_THRESHOLD_VECS`, shaders/lib/shading.wgsl): the slots beyond hold
+/// 2.0 and add nothing to a band.
+pub fn toon_threshold_vecs(materials: &[Material]) -> u8 {
+    let most = materials
+        .iter()
+        .filter_map(|m| match &m.model {
+            ShadingModel::Toon(toon) => Some(toon.thresholds.len()),
+            ShadingModel::BlinnPhong => None,
+        })
+        .max()
+        .unwrap_or(0)
+        .min(MAX_TOON_BANDS as usize - 1);
+    u8::try_from(most.div_ceil(4).clamp(1, 4)).expect("1 to 4")
+}
+
 /// The GPU form of a material; `textures` gives its image's array layer.
 pub fn material_to_gpu(m: &Material, textures: &SceneTextures) -> GpuMaterial {
     let mut g = GpuMaterial {

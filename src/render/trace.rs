@@ -21,7 +21,7 @@ use crate::gpu::shader::Traversal;
 use crate::gpu::twins::TRACE_WORKGROUP;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
-use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
+use crate::render::scene_buffers::{self, scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 use crate::render::RenderSettings;
 use crate::scene::{Light, Material, Scene};
@@ -81,6 +81,9 @@ pub struct Variant {
     reflections: bool,
     glossy: bool,
     textures: bool,
+    /// `TOON_THRESHOLD_VECS` (lib/shading.wgsl): the vec4s of toon
+    /// thresholds the scene's materials fill, 1 to 4.
+    toon_threshold_vecs: u8,
 }
 
 impl Variant {
@@ -102,11 +105,12 @@ impl Variant {
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
             textures: buffers.uses_textures,
+            toon_threshold_vecs: scene_buffers::toon_threshold_vecs(&scene.materials),
         }
     }
 
     /// The override constants that select this variant in trace.wgsl.
-    fn constants(self) -> [(&'static str, f64); 6] {
+    fn constants(self) -> [(&'static str, f64); 7] {
         let flag = |b: bool| f64::from(u8::from(b));
         [
             ("CSG_ENABLED", flag(self.csg)),
@@ -115,6 +119,7 @@ impl Variant {
             ("REFLECTIONS_ENABLED", flag(self.reflections)),
             ("GLOSSY_ENABLED", flag(self.glossy)),
             ("TEXTURES_ENABLED", flag(self.textures)),
+            ("TOON_THRESHOLD_VECS", f64::from(self.toon_threshold_vecs)),
         ]
     }
 }
