@@ -11,6 +11,11 @@
 @group(1) @binding(2) var normal_depth_tex: texture_2d<f32>;
 @group(1) @binding(3) var id_tex: texture_2d<u32>;
 @group(1) @binding(4) var<storage, read_write> accum: array<vec4<f32>>;
+// From shaders/outline_tiles.wgsl, run just before: 1 where this
+// workgroup's tile (with its halo) holds an outlined object. Read-only
+// storage read at the workgroup's own index is uniform, so the tile load
+// and its barrier can sit under it.
+@group(1) @binding(5) var<storage, read> tile_marks: array<u32>;
 
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP;
 // MAX_OUTLINE_RADIUS (outlines wider than this many pixels are drawn this
@@ -27,19 +32,8 @@ var<workgroup> tile_id: array<u32, TILE_TEXELS>;
 var<workgroup> tile_normal_depth: array<vec4<f32>, TILE_TEXELS>;
 var<workgroup> tile_material: array<u32, TILE_TEXELS>;
 var<workgroup> tile_width: array<f32, TILE_TEXELS>;
-// Set while loading the tile when some texel of it could draw an outline
-// on another pixel: an object texel whose material's outline is at least
-// 1 px wide (a narrower one reaches no other pixel). A tile without one
-// skips the search: the floor and the sky, outlined by nothing, are most
-// of many scenes. (Also skipping tiles of one object with close depths and
-// normals, through per-tile bounds kept with ten workgroup atomics per
-// invocation, made the kernel slower: 40 ms against 22 on the default
-// scene, docs/performance.md.)
-var<workgroup> tile_has_source: atomic<u32>;
-
 fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
     let size = vec2<i32>(frame.size_px);
-    var source = false;
     for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
         let q = origin + vec2<i32>(k % span, k / span);
         var id = 0u;
@@ -54,14 +48,10 @@ fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
                 width = materials[material].outline_width_px;
             }
         }
-        source = source || width >= 1.0;
         tile_id[k] = id;
         tile_normal_depth[k] = nd;
         tile_material[k] = material;
         tile_width[k] = width;
-    }
-    if source {
-        atomicOr(&tile_has_source, 1u);
     }
 }
 
@@ -114,15 +104,19 @@ fn main(
     // Integer offsets within a disk of radius w have |dx|, |dy| <= floor(w).
     let r = i32(floor(min(frame.max_outline_px, f32(MAX_OUTLINE_RADIUS))));
     let span = i32(ACCUMULATE_WORKGROUP) + 2 * r;
-    if r > 0 {
+    let tiles_x = (frame.size_px.x + ACCUMULATE_WORKGROUP - 1u) / ACCUMULATE_WORKGROUP;
+    // Tiles that nothing can outline skip the tile, its barrier and the
+    // search (the whole workgroup agrees, so the CPU driver skips the code).
+    let outlined = r > 0 && tile_marks[wg.y * tiles_x + wg.x] != 0u;
+    if outlined {
         load_tile(vec2<i32>(wg.xy * ACCUMULATE_WORKGROUP) - vec2<i32>(r), span, li);
+        workgroupBarrier();
     }
-    workgroupBarrier();
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
         return;
     }
     var c = textureLoad(color_tex, vec2<i32>(gid.xy), 0).rgb;
-    if r > 0 && atomicLoad(&tile_has_source) != 0u {
+    if outlined {
         let o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
         c = mix(c, o.rgb, o.a);
     }

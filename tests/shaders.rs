@@ -500,6 +500,7 @@ fn rust_groups(file: &str) -> Vec<(u32, &'static [wgpu::BindGroupLayoutEntry])> 
         "trace.wgsl" => scene_and(&trace::PASS_LAYOUT),
         "ray_batch.wgsl" => scene_and(&ray_batch::PASS_LAYOUT),
         "accumulate.wgsl" => scene_and(&accumulate::PASS_LAYOUT),
+        "outline_tiles.wgsl" => scene_and(&accumulate::TILES_LAYOUT),
         "resolve.wgsl" => vec![(0, &resolve::PASS_LAYOUT[..])],
         "reproject.wgsl" => vec![(0, &reproject::PASS_LAYOUT[..])],
         "bench_floor.wgsl" => vec![(0, &celray::gpu::layout::BENCH_FLOOR_LAYOUT[..])],

@@ -255,3 +255,72 @@ fn outline_width_is_in_pixels_at_any_resolution() {
         );
     }
 }
+
+/// A toon sphere with an 8 px magenta outline on black, in an image whose
+/// size is no multiple of the accumulate pass's 16 px tiles, with the
+/// sphere near its corner. On the background the outline rule is exact
+/// and needs only the id buffer: a background pixel is outlined iff some
+/// sphere pixel lies within 8 px of it (dx^2 + dy^2 <= 64; the sphere is
+/// the only object). The ring crosses tiles that hold no sphere pixel
+/// (only the tile's halo does) and the image's edges, where the pass skips
+/// tiles that nothing outlines (shaders/outline_tiles.wgsl): no pixel of
+/// the ring may go missing, and none outside it may appear. Exact match.
+#[test]
+fn wide_outline_ring_is_whole_across_tiles_and_image_edges() {
+    let gpu = gpu();
+    let (w, h) = (122u32, 90u32);
+    let ron = format!(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: {w}, height: {h}),
+            ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+            lights: [Directional(direction: (0.0, 0.0, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: {{ "m": (base_color: (0.2, 0.8, 0.2), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 3),
+                           outline_color: (1.0, 0.0, 1.0), outline_width_px: 8.0) }},
+            shapes: {{ "ball": Sphere(radius: 0.35) }},
+            instances: [(shape: "ball", material: "m", transform: (translate: (1.3, 0.85, 0.0)))],
+        )"#
+    );
+    let scene = scene(&ron);
+    for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+        let settings = RenderSettings {
+            mode,
+            ..pixel_centre_settings(&scene)
+        };
+        let (img, ids) = render(&gpu, scene.clone(), settings);
+        let sphere: Vec<(i64, i64)> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .filter(|&(x, y)| ids[(y * w + x) as usize] != 0)
+            .map(|(x, y)| (i64::from(x), i64::from(y)))
+            .collect();
+        assert!(sphere.len() > 100, "{}: the sphere is in view", mode.name());
+        let (mut ring, mut touches_edge) = (0, false);
+        for y in 0..h {
+            for x in 0..w {
+                if ids[(y * w + x) as usize] != 0 {
+                    continue;
+                }
+                let near = sphere.iter().any(|&(sx, sy)| {
+                    let (dx, dy) = (sx - i64::from(x), sy - i64::from(y));
+                    dx * dx + dy * dy <= 64
+                });
+                let expected = if near { [255, 0, 255] } else { [0, 0, 0] };
+                assert_eq!(
+                    rgb_at(&img, w, x, y),
+                    expected,
+                    "{}: background pixel ({x},{y}), outlined: {near}",
+                    mode.name()
+                );
+                if near {
+                    ring += 1;
+                    touches_edge |= x == w - 1 || y == 0;
+                }
+            }
+        }
+        assert!(ring > 300, "{}: {ring} ring pixels", mode.name());
+        assert!(
+            touches_edge,
+            "{}: the ring reaches the image's edge",
+            mode.name()
+        );
+    }
+}

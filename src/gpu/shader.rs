@@ -46,6 +46,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("TRACE_WORKGROUP", twins::TRACE_WORKGROUP),
         ("RAY_BATCH_WORKGROUP", twins::RAY_BATCH_WORKGROUP),
         ("ACCUMULATE_WORKGROUP", twins::ACCUMULATE_WORKGROUP),
+        ("OUTLINE_TILES_WORKGROUP", twins::OUTLINE_TILES_WORKGROUP),
         ("REPROJECT_WORKGROUP", twins::REPROJECT_WORKGROUP),
     ]
 }
@@ -129,6 +130,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     (
         "accumulate.wgsl",
         include_str!("../../shaders/accumulate.wgsl"),
+    ),
+    (
+        "outline_tiles.wgsl",
+        include_str!("../../shaders/outline_tiles.wgsl"),
     ),
     ("resolve.wgsl", include_str!("../../shaders/resolve.wgsl")),
     (

@@ -21,6 +21,9 @@ pub const TONE_MAP_CLAMP: u32 = 0;
 pub const TONE_MAP_REINHARD: u32 = 1;
 /// Workgroup edge of the accumulate kernel (16 x 16 invocations).
 pub const ACCUMULATE_WORKGROUP: u32 = 16;
+/// Workgroup size of the outline tile marks (shaders/outline_tiles.wgsl):
+/// one invocation per accumulate tile.
+pub const OUTLINE_TILES_WORKGROUP: u32 = 64;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]

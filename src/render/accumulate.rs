@@ -1,10 +1,15 @@
 //! Pass 3: add this sample's colour (with outlines) to the accumulator.
 //! Group 0 is the scene's shared group (instances and materials give each
 //! pixel's outline); group 1 is [`PASS_LAYOUT`] (frame uniforms, one
-//! G-buffer, the accumulator).
+//! G-buffer, the accumulator, the tile marks). When the scene has
+//! outlines, a first dispatch (`shaders/outline_tiles.wgsl`, group 1
+//! [`TILES_LAYOUT`]) marks the workgroup tiles that hold an outlined
+//! object, and the accumulate kernel searches only those.
 
-use crate::gpu::layout::{read_write_storage_entry, texture_entry, uniform_entry};
-use crate::gpu::twins::ACCUMULATE_WORKGROUP;
+use crate::gpu::layout::{
+    read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
+};
+use crate::gpu::twins::{ACCUMULATE_WORKGROUP, OUTLINE_TILES_WORKGROUP};
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
 use crate::render::targets::{GBuffer, Targets};
@@ -13,61 +18,94 @@ const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterab
 
 /// Group 1 of the accumulate pass, binding by binding as
 /// `shaders/accumulate.wgsl` declares it.
-pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 5] = [
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 6] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     texture_entry(1, FLOAT),                       // color_tex
     texture_entry(2, FLOAT),                       // normal_depth_tex
     texture_entry(3, wgpu::TextureSampleType::Uint), // id_tex
     read_write_storage_entry(4),                   // accum
+    read_only_storage_entry(5, wgpu::ShaderStages::COMPUTE), // tile_marks
+];
+
+/// Group 1 of the tile-marking dispatch, binding by binding as
+/// `shaders/outline_tiles.wgsl` declares it.
+pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 3] = [
+    uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
+    texture_entry(1, wgpu::TextureSampleType::Uint), // id_tex
+    read_write_storage_entry(2),                   // tile_marks
 ];
 
 pub struct AccumulatePass {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    tiles_pipeline: wgpu::ComputePipeline,
+    tiles_layout: wgpu::BindGroupLayout,
     /// The scene's shared group.
     scene_group: Option<wgpu::BindGroup>,
+    /// Reading the raster G-buffer, then the traced one: the accumulate
+    /// groups and the tile-marking groups.
     bind_groups: Option<[wgpu::BindGroup; 2]>,
+    tiles_groups: Option<[wgpu::BindGroup; 2]>,
+}
+
+/// The number of accumulate workgroups (tiles) of a target, across and down.
+fn tiles(targets: &Targets) -> (u32, u32) {
+    (
+        targets.width.div_ceil(ACCUMULATE_WORKGROUP),
+        targets.height.div_ceil(ACCUMULATE_WORKGROUP),
+    )
 }
 
 impl AccumulatePass {
     pub fn new(gpu: &Gpu) -> Result<AccumulatePass, GpuError> {
         let module = shader::create_module(gpu, "accumulate.wgsl")?;
+        let tiles_module = shader::create_module(gpu, "outline_tiles.wgsl")?;
         gpu.scoped(|| {
             let scene_layout = scene_layout(gpu);
-            let layout = gpu
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("accumulate bind group layout"),
-                    entries: &PASS_LAYOUT,
-                });
-            let pipeline_layout =
-                gpu.device
-                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some("accumulate pipeline layout"),
-                        bind_group_layouts: &[Some(&scene_layout), Some(&layout)],
-                        immediate_size: 0,
-                    });
-            let pipeline = gpu
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("accumulate pipeline"),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some("main"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
+            let kernel = |name: &str, entries: &[wgpu::BindGroupLayoutEntry], module| {
+                let layout =
+                    gpu.device
+                        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                            label: Some(&format!("{name} bind group layout")),
+                            entries,
+                        });
+                let pipeline_layout =
+                    gpu.device
+                        .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                            label: Some(&format!("{name} pipeline layout")),
+                            bind_group_layouts: &[Some(&scene_layout), Some(&layout)],
+                            immediate_size: 0,
+                        });
+                let pipeline =
+                    gpu.device
+                        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                            label: Some(&format!("{name} pipeline")),
+                            layout: Some(&pipeline_layout),
+                            module,
+                            entry_point: Some("main"),
+                            compilation_options: Default::default(),
+                            cache: None,
+                        });
+                (pipeline, layout)
+            };
+            let (pipeline, layout) = kernel("accumulate", &PASS_LAYOUT, &module);
+            let (tiles_pipeline, tiles_layout) =
+                kernel("outline tiles", &TILES_LAYOUT, &tiles_module);
             AccumulatePass {
                 pipeline,
                 layout,
+                tiles_pipeline,
+                tiles_layout,
                 scene_group: None,
                 bind_groups: None,
+                tiles_groups: None,
             }
         })
     }
 
-    /// Two bind groups: one reading the raster G-buffer (raster mode), one
-    /// reading the traced G-buffer (hybrid and raytrace modes).
+    /// Bind groups reading the raster G-buffer (raster mode) and the
+    /// traced one (hybrid and raytrace modes), with the tile marks sized
+    /// to the targets.
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
@@ -75,61 +113,96 @@ impl AccumulatePass {
         scene: &SceneBuffers,
         targets: &Targets,
     ) {
-        let group = |label, g: &GBuffer| {
-            let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (tiles_x, tiles_y) = tiles(targets);
+        let marks = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("outline tile marks"),
+            size: u64::from(tiles_x * tiles_y) * 4,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let group = |label, layout, entries: &[(u32, wgpu::BindingResource)]| {
+            let entries: Vec<_> = entries
+                .iter()
+                .map(|(binding, resource)| wgpu::BindGroupEntry {
+                    binding: *binding,
+                    resource: resource.clone(),
+                })
+                .collect();
             gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: frame.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(&view(&g.color)),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: wgpu::BindingResource::TextureView(&view(&g.normal_depth)),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: wgpu::BindingResource::TextureView(&view(&g.id)),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: targets.accum.as_entire_binding(),
-                    },
-                ],
+                layout,
+                entries: &entries,
             })
+        };
+        let accumulate = |label, g: &GBuffer| {
+            let (color, normal_depth, id) = (
+                g.color.create_view(&Default::default()),
+                g.normal_depth.create_view(&Default::default()),
+                g.id.create_view(&Default::default()),
+            );
+            group(
+                label,
+                &self.layout,
+                &[
+                    (0, frame.as_entire_binding()),
+                    (1, wgpu::BindingResource::TextureView(&color)),
+                    (2, wgpu::BindingResource::TextureView(&normal_depth)),
+                    (3, wgpu::BindingResource::TextureView(&id)),
+                    (4, targets.accum.as_entire_binding()),
+                    (5, marks.as_entire_binding()),
+                ],
+            )
+        };
+        let marking = |label, g: &GBuffer| {
+            let id = g.id.create_view(&Default::default());
+            group(
+                label,
+                &self.tiles_layout,
+                &[
+                    (0, frame.as_entire_binding()),
+                    (1, wgpu::BindingResource::TextureView(&id)),
+                    (2, marks.as_entire_binding()),
+                ],
+            )
         };
         self.scene_group = Some(scene.bind_group.clone());
         self.bind_groups = Some([
-            group("accumulate bind group (raster)", &targets.raster),
-            group("accumulate bind group (traced)", &targets.traced),
+            accumulate("accumulate bind group (raster)", &targets.raster),
+            accumulate("accumulate bind group (traced)", &targets.traced),
+        ]);
+        self.tiles_groups = Some([
+            marking("outline tiles bind group (raster)", &targets.raster),
+            marking("outline tiles bind group (traced)", &targets.traced),
         ]);
     }
 
+    /// Both dispatches in one compute pass (one timer span): the tile
+    /// marks where the scene has outlines (`outlines`: some material's
+    /// outline is at least 1 px wide), then the accumulation.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
         traced: bool,
+        outlines: bool,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("accumulate pass"),
             timestamp_writes,
         });
+        let (tiles_x, tiles_y) = tiles(targets);
+        let slot = usize::from(traced);
+        pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
+        if outlines {
+            pass.set_pipeline(&self.tiles_pipeline);
+            let groups = self.tiles_groups.as_ref();
+            pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[slot]), &[]);
+            pass.dispatch_workgroups((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1, 1);
+        }
         pass.set_pipeline(&self.pipeline);
         let groups = self.bind_groups.as_ref();
-        pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
-        pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[usize::from(traced)]), &[]);
-        pass.dispatch_workgroups(
-            targets.width.div_ceil(ACCUMULATE_WORKGROUP),
-            targets.height.div_ceil(ACCUMULATE_WORKGROUP),
-            1,
-        );
+        pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[slot]), &[]);
+        pass.dispatch_workgroups(tiles_x, tiles_y, 1);
     }
 }

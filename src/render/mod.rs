@@ -473,6 +473,17 @@ impl Renderer {
         }
     }
 
+    /// The widest outline of any material, in pixels, capped at the
+    /// accumulate pass's search radius.
+    fn max_outline_px(&self) -> f32 {
+        self.scene
+            .materials
+            .iter()
+            .map(|m| m.outline_width_px)
+            .fold(0.0f32, f32::max)
+            .min(crate::gpu::twins::MAX_OUTLINE_RADIUS as f32)
+    }
+
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
@@ -483,13 +494,7 @@ impl Renderer {
         let scene_radius = ((hi - lo).length() * 0.5).max(1e-3);
         // Inverted in f64: the projection's near/far ratio is large.
         let world_from_clip = sc.clip_from_world.as_dmat4().inverse().as_mat4();
-        let max_outline = self
-            .scene
-            .materials
-            .iter()
-            .map(|m| m.outline_width_px)
-            .fold(0.0f32, f32::max)
-            .min(crate::gpu::twins::MAX_OUTLINE_RADIUS as f32);
+        let max_outline = self.max_outline_px();
         FrameUniforms {
             clip_from_world: sc.clip_from_world.to_cols_array_2d(),
             eye_in_world: sc.eye.extend(1.0).to_array(),
@@ -554,6 +559,8 @@ impl Renderer {
             t.last_timed = t.timer.begin();
             t.last_timed
         });
+        // An outline under 1 px reaches no other pixel (search radius 0).
+        let outlines = self.max_outline_px() >= 1.0;
         let mut timer = self.timer.as_mut().filter(|_| timed);
         let traced = mode != RenderMode::Raster;
         if let Some((pass, _)) = &moving {
@@ -582,6 +589,7 @@ impl Renderer {
             &mut encoder,
             &self.targets,
             traced,
+            outlines,
             timer
                 .as_mut()
                 .and_then(|t| t.timer.compute_writes(t.accumulate)),
