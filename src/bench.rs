@@ -23,9 +23,16 @@ use celray::scene::{Instance, Scene};
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
     /// Which cases: floor, raster, rays, effects (with temporal), csg, accel
-    /// (driver ray queries vs the software BVH), temporal or all.
+    /// (driver ray queries vs the software BVH), temporal, all, or scene
+    /// (one case, `scene`: frames of the --scene file in --mode).
     #[arg(default_value = "all")]
     pub suite: String,
+    /// With suite `scene`: the scene file whose frames are timed.
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+    /// With suite `scene`: how primary visibility is found.
+    #[arg(long, value_enum, default_value_t = RenderMode::Hybrid)]
+    pub mode: RenderMode,
     /// Frames timed per case (after 3 warm-up frames).
     #[arg(long, default_value_t = 20)]
     pub frames: u32,
@@ -753,10 +760,53 @@ fn floor_suite(gpu: &Gpu, args: &BenchArgs, r: &mut Report) -> anyhow::Result<()
     Ok(())
 }
 
+/// Suite `scene`: frames of the user's own scene (case `scene`).
+fn scene_case(gpu: &Gpu, args: &BenchArgs, scene: Scene, r: &Report) -> anyhow::Result<()> {
+    let path = args.scene.as_deref().unwrap_or(std::path::Path::new("-"));
+    let s = time_frames(gpu, scene, args.mode, args)?;
+    md!(
+        r,
+        "\n## {} ({}x{}, {} mode)\n",
+        path.display(),
+        args.width,
+        args.height,
+        args.mode.name()
+    );
+    md!(r, "| frame ms (mean) | median | GPU ms per pass |");
+    md!(r, "|---|---|---|");
+    let mut kernels = s.kernels();
+    if args.mode == RenderMode::Raster {
+        // Raster mode runs no trace pass: its timer slot is stale.
+        kernels.retain(|(k, _)| *k != "trace");
+    }
+    let passes: Vec<String> = kernels
+        .iter()
+        .map(|(k, ms)| format!("{k} {ms:.1}"))
+        .collect();
+    md!(
+        r,
+        "| {:.1} | {:.1} | {} |",
+        s.mean,
+        s.median,
+        passes.join(", ")
+    );
+    r.case("scene", s.mean, None, &kernels);
+    Ok(())
+}
+
 pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     if args.frames == 0 {
         anyhow::bail!("--frames must be at least 1 (frames timed per case)");
     }
+    // Suite `scene`: the file is read (and refused) before anything runs.
+    let own_scene = match (args.suite.as_str(), &args.scene) {
+        ("scene", Some(path)) => Some(Scene::load(path)?),
+        ("scene", None) => anyhow::bail!("bench scene: name the scene file with --scene FILE"),
+        (_, Some(_)) => {
+            anyhow::bail!("--scene is for the suite `scene` (celray bench scene --scene FILE)")
+        }
+        (_, None) => None,
+    };
     let mut report = Report {
         json: args.json,
         driver: format!("{} {}", gpu.summary.name, gpu.summary.driver),
@@ -784,6 +834,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
         "csg" => csg::csg_suite(gpu, args, r),
         "accel" => accel::accel_suite(gpu, args, helmet.as_ref(), r),
         "temporal" => temporal_rows(gpu, args, r),
+        "scene" => scene_case(gpu, args, own_scene.expect("loaded above"), r),
         "all" => {
             raster_suite(gpu, args, helmet.as_ref(), r)?;
             rays_suite(gpu, args, helmet.as_ref(), r)?;
@@ -793,7 +844,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
             accel::accel_suite(gpu, args, helmet.as_ref(), r)
         }
         other => anyhow::bail!(
-            "bench suite {other:?}: expected floor, raster, rays, effects, csg, accel, temporal or all"
+            "bench suite {other:?}: expected floor, raster, rays, effects, csg, accel, temporal, all or scene"
         ),
     }
 }

@@ -115,6 +115,8 @@ fn counts_past_their_bounds_are_refused_naming_the_bound() {
         case(&["bench", "--frames", "0"], "1 to 1000"),
         case(&["bench", "--frames", "1001"], "1 to 1000"),
         case(&["bench", "--frames", "4294967295"], "1 to 1000"),
+        case(&["bench", "scene"], "--scene FILE"),
+        case(&["bench", "raster", "--scene", "x.ron"], "suite `scene`"),
     ];
     if cfg!(feature = "app") {
         // Refused before any window is opened.
