@@ -212,14 +212,49 @@ fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, tri: GpuTriangle, t_min: f32, 
     return ObjectHit(true, t, n, cross(e1, e2));
 }
 
+// The analytic shape kinds the scene holds (bit 1 << kind), at the top
+// level or as CSG leaves, fixed per pipeline (trace.rs Variant): the
+// intersection code of the others is left out. Pipelines that do not set
+// it hold every kind.
+override ANALYTIC_KINDS: u32 = 0x3fu;
+
+fn has_kind(kind: u32) -> bool {
+    return (ANALYTIC_KINDS & (1u << kind)) != 0u;
+}
+
 fn intersect_analytic(kind: u32, p: vec4<f32>, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
     switch kind {
-        case SHAPE_SPHERE: { return intersect_sphere(o, d, p.x, t_min, t_max); }
-        case SHAPE_BOX: { return intersect_box(o, d, p.xyz, t_min, t_max); }
-        case SHAPE_CYLINDER: { return intersect_cylinder(o, d, p.x, p.y, t_min, t_max); }
-        case SHAPE_CONE: { return intersect_cone(o, d, p.x, p.y, t_min, t_max); }
-        case SHAPE_QUAD: { return intersect_plane(o, d, p.xy, false, t_min, t_max); }
-        case SHAPE_DISK: { return intersect_plane(o, d, p.xx, true, t_min, t_max); }
-        default: { return no_hit(); }
+        case SHAPE_SPHERE: {
+            if has_kind(SHAPE_SPHERE) {
+                return intersect_sphere(o, d, p.x, t_min, t_max);
+            }
+        }
+        case SHAPE_BOX: {
+            if has_kind(SHAPE_BOX) {
+                return intersect_box(o, d, p.xyz, t_min, t_max);
+            }
+        }
+        case SHAPE_CYLINDER: {
+            if has_kind(SHAPE_CYLINDER) {
+                return intersect_cylinder(o, d, p.x, p.y, t_min, t_max);
+            }
+        }
+        case SHAPE_CONE: {
+            if has_kind(SHAPE_CONE) {
+                return intersect_cone(o, d, p.x, p.y, t_min, t_max);
+            }
+        }
+        case SHAPE_QUAD: {
+            if has_kind(SHAPE_QUAD) {
+                return intersect_plane(o, d, p.xy, false, t_min, t_max);
+            }
+        }
+        case SHAPE_DISK: {
+            if has_kind(SHAPE_DISK) {
+                return intersect_plane(o, d, p.xx, true, t_min, t_max);
+            }
+        }
+        default: {}
     }
+    return no_hit();
 }

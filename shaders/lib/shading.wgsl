@@ -1,6 +1,36 @@
 // Blinn-Phong and toon shading: written once, used by the raster fragment
 // shader and by the compute passes alike, so every path shades the same.
 
+// What the scene's materials and lights use, fixed per pipeline (the raster
+// and trace pipelines are keyed by it, src/render/scene_buffers.rs
+// ShadingVariant), so the code of what no material or light uses is not in
+// the kernel: the CPU driver pays for code that any of 8 neighbouring
+// invocations might need (Mesa 22.3: all of it). Pipelines that do not set
+// them hold everything. SHADING_MODELS: bit 0 Blinn-Phong, bit 1 toon.
+// LIGHT_KINDS: bit 0 directional, bit 1 point.
+override SHADING_MODELS: u32 = 3u;
+override LIGHT_KINDS: u32 = 3u;
+
+fn is_toon(m: GpuMaterial) -> bool {
+    if SHADING_MODELS == 2u {
+        return true;
+    }
+    if SHADING_MODELS == 1u {
+        return false;
+    }
+    return m.model == SHADING_TOON;
+}
+
+fn is_directional(light: GpuLight) -> bool {
+    if LIGHT_KINDS == 1u {
+        return true;
+    }
+    if LIGHT_KINDS == 2u {
+        return false;
+    }
+    return light.position_or_direction.w == 0.0;
+}
+
 // The direction towards a light from p, and the radiance arriving there.
 struct LightSample {
     to_light: vec3<f32>,
@@ -11,7 +41,7 @@ struct LightSample {
 // Directional lights arrive undiminished; point lights fall off as 1/d^2.
 fn sample_light(light: GpuLight, p: vec3<f32>) -> LightSample {
     var s: LightSample;
-    if light.position_or_direction.w == 0.0 {
+    if is_directional(light) {
         s.to_light = -normalize(light.position_or_direction.xyz);
         s.radiance = light.radiance.rgb;
         s.distance = 3.0e38;
@@ -65,7 +95,7 @@ fn shade_light(m: GpuMaterial, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, radianc
     let n_dot_l = dot(n, l);
     let h = normalize(l + v);
     let spec = select(0.0, pow(max(dot(n, h), 0.0), m.shininess), n_dot_l > 0.0);
-    if m.model == SHADING_TOON {
+    if is_toon(m) {
         let diffuse = toon_level(m, max(n_dot_l, 0.0));
         let highlight = select(0.0, 1.0, spec > m.specular_threshold);
         return (m.base_color * diffuse + m.specular_color * highlight) * radiance;
@@ -77,7 +107,7 @@ fn shade_light(m: GpuMaterial, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, radianc
 // surface facing away from it (toon: the darkest band; Blinn-Phong: none),
 // so a cast shadow looks like the unlit side.
 fn shade_light_blocked(m: GpuMaterial, radiance: vec3<f32>) -> vec3<f32> {
-    if m.model == SHADING_TOON {
+    if is_toon(m) {
         return m.base_color * toon_level(m, 0.0) * radiance;
     }
     return vec3<f32>(0.0);
@@ -86,7 +116,7 @@ fn shade_light_blocked(m: GpuMaterial, radiance: vec3<f32>) -> vec3<f32> {
 // The light-independent part: ambient * kd, plus the toon rim light.
 fn shade_ambient(m: GpuMaterial, n: vec3<f32>, v: vec3<f32>, ambient: vec3<f32>) -> vec3<f32> {
     var c = ambient * m.base_color;
-    if m.model == SHADING_TOON && 1.0 - max(dot(n, v), 0.0) > m.rim_threshold {
+    if is_toon(m) && 1.0 - max(dot(n, v), 0.0) > m.rim_threshold {
         c += m.rim_color;
     }
     return c;

@@ -43,7 +43,7 @@ use driver_accel::DriverAccel;
 use raster::RasterPass;
 use reproject::ReprojectPass;
 use resolve::ResolvePass;
-use scene_buffers::SceneBuffers;
+use scene_buffers::{SceneBuffers, ShadingVariant};
 pub use settings::{
     AccelChoice, RenderMode, RenderSettings, Temporal, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES,
     MAX_SPP,
@@ -217,8 +217,9 @@ impl Renderer {
     }
 
     fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
+        let shading = ShadingVariant::of(&self.scene.materials, &self.scene.lights);
         self.raster
-            .prepare(gpu, &self.frame, &self.buffers, &self.scene.materials);
+            .prepare(gpu, &self.frame, &self.buffers, shading);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         let traced = self.trace.prepare(
             gpu,
@@ -376,8 +377,9 @@ impl Renderer {
         self.scene = scene;
         // Edited materials or lights may need other code in the trace kernel
         // (e.g. a first reflective material).
+        let shading = ShadingVariant::of(&self.scene.materials, &self.scene.lights);
         self.raster
-            .prepare(gpu, &self.frame, &self.buffers, &self.scene.materials);
+            .prepare(gpu, &self.frame, &self.buffers, shading);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         self.trace.select_variant(gpu, variant)?;
         self.reset();

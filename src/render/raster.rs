@@ -3,18 +3,17 @@
 //! traced), nothing in raytrace mode (the pass only clears). Group 0 is
 //! the scene's shared group; group 1 is [`PASS_LAYOUT`] (frame uniforms).
 
-use crate::gpu::twins::{Vertex, FAR_DEPTH};
-use crate::gpu::{shader, Gpu, GpuError};
 use std::collections::HashMap;
 
+use crate::gpu::twins::{Vertex, FAR_DEPTH};
+use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::scene_buffers::{
-    scene_layout, toon_threshold_vecs, Cull, SceneBuffers, PASS_GROUP, SCENE_GROUP,
+    scene_layout, Cull, SceneBuffers, ShadingVariant, PASS_GROUP, SCENE_GROUP,
 };
 use crate::render::settings::RenderMode;
 use crate::render::targets::{
     Targets, ALBEDO_FORMAT, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT,
 };
-use crate::scene::Material;
 
 pub struct RasterPass {
     /// One pipeline per [`Cull`] mode (back, front, none) for each
@@ -35,8 +34,8 @@ struct RasterVariant {
     /// The texture code (entry points `vs_textured`/`fs_textured` rather
     /// than `vs_main`/`fs_main`).
     textures: bool,
-    /// `TOON_THRESHOLD_VECS` (lib/shading.wgsl), 1 to 4.
-    toon_threshold_vecs: u8,
+    /// What the materials and lights need of the shading code.
+    shading: ShadingVariant,
 }
 
 /// Group 1 of the raster pass, binding by binding as `shaders/raster.wgsl`
@@ -76,17 +75,17 @@ impl RasterPass {
 
     /// Builds the pipelines the scene needs (once) and binds the frame
     /// uniforms (the scene's group is the scene's own). Called again when
-    /// materials change: their toon thresholds choose the variant.
+    /// materials or lights change: they choose the shading variant.
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
         frame: &wgpu::Buffer,
         scene: &SceneBuffers,
-        materials: &[Material],
+        shading: ShadingVariant,
     ) {
         self.variant = RasterVariant {
             textures: scene.uses_textures,
-            toon_threshold_vecs: toon_threshold_vecs(materials),
+            shading,
         };
         if !self.pipelines.contains_key(&self.variant) {
             let built = raster_pipelines(gpu, &self.pipeline_layout, &self.module, self.variant);
@@ -209,10 +208,7 @@ fn raster_pipelines(
     variant: RasterVariant,
 ) -> [wgpu::RenderPipeline; 3] {
     let textures = variant.textures;
-    let constants = [(
-        "TOON_THRESHOLD_VECS",
-        f64::from(variant.toon_threshold_vecs),
-    )];
+    let constants = variant.shading.constants();
     let options = || wgpu::PipelineCompilationOptions {
         constants: &constants,
         ..Default::default()

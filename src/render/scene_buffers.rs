@@ -126,22 +126,71 @@ pub struct SceneBuffers {
     pub bind_group: wgpu::BindGroup,
 }
 
-/// How many vec4s of toon thresholds (four to a vec4, as
-/// [`material_to_gpu`] packs them) the materials fill: at least 1, at most
-/// 4. The raster and trace pipelines are built for this many
-/// (`TOON_THRESHOLD_VECS`, shaders/lib/shading.wgsl): the slots beyond hold
-/// 2.0 and add nothing to a band.
-pub fn toon_threshold_vecs(materials: &[Material]) -> u8 {
-    let most = materials
-        .iter()
-        .filter_map(|m| match &m.model {
-            ShadingModel::Toon(toon) => Some(toon.thresholds.len()),
-            ShadingModel::BlinnPhong => None,
-        })
-        .max()
-        .unwrap_or(0)
-        .min(MAX_TOON_BANDS as usize - 1);
-    u8::try_from(most.div_ceil(4).clamp(1, 4)).expect("1 to 4")
+/// What the shading code must handle for a scene's materials and lights:
+/// the override constants of lib/shading.wgsl, which the raster and trace
+/// pipelines are keyed by (code no material or light needs is left out).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ShadingVariant {
+    /// `TOON_THRESHOLD_VECS`: the vec4s of toon thresholds (four to a
+    /// vec4, as [`material_to_gpu`] packs them) the materials fill, 1 to
+    /// 4; the slots beyond hold 2.0 and add nothing to a band.
+    toon_threshold_vecs: u8,
+    /// `SHADING_MODELS`: bit 0 Blinn-Phong, bit 1 toon.
+    models: u8,
+    /// `LIGHT_KINDS`: bit 0 directional, bit 1 point.
+    lights: u8,
+}
+
+impl Default for ShadingVariant {
+    /// Everything (what the shaders assume when nothing is set).
+    fn default() -> Self {
+        ShadingVariant {
+            toon_threshold_vecs: 4,
+            models: 3,
+            lights: 3,
+        }
+    }
+}
+
+impl ShadingVariant {
+    pub fn of(materials: &[Material], lights: &[Light]) -> ShadingVariant {
+        let most = materials
+            .iter()
+            .filter_map(|m| match &m.model {
+                ShadingModel::Toon(toon) => Some(toon.thresholds.len()),
+                ShadingModel::BlinnPhong => None,
+            })
+            .max()
+            .unwrap_or(0)
+            .min(MAX_TOON_BANDS as usize - 1);
+        let models = materials.iter().fold(0, |bits, m| {
+            bits | match m.model {
+                ShadingModel::BlinnPhong => 1,
+                ShadingModel::Toon(_) => 2,
+            }
+        });
+        let lights = lights.iter().fold(0, |bits, l| {
+            bits | match l {
+                Light::Directional { .. } => 1,
+                Light::Point { .. } => 2,
+            }
+        });
+        ShadingVariant {
+            toon_threshold_vecs: u8::try_from(most.div_ceil(4).clamp(1, 4)).expect("1 to 4"),
+            // No material or no light at all: nothing to leave out.
+            models: if models == 0 { 3 } else { models },
+            lights: if lights == 0 { 3 } else { lights },
+        }
+    }
+
+    /// The override constants that select this variant in lib/shading.wgsl.
+    pub fn constants(self) -> [(&'static str, f64); 3] {
+        [
+            ("TOON_THRESHOLD_VECS", f64::from(self.toon_threshold_vecs)),
+            ("SHADING_MODELS", f64::from(self.models)),
+            ("LIGHT_KINDS", f64::from(self.lights)),
+        ]
+    }
 }
 
 /// The GPU form of a material; `textures` gives its image's array layer.
@@ -540,5 +589,62 @@ impl SceneBuffers {
                 triangle_count,
             }
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shading_of(materials: &str, lights: &str) -> [(&'static str, f64); 3] {
+        let ron = format!(
+            r#"(version: 1,
+                camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 8, height: 8),
+                lights: [{lights}],
+                materials: {{ {materials} }},
+                shapes: {{ "s": Sphere(radius: 1.0) }},
+                instances: [(shape: "s", material: "a")],
+            )"#
+        );
+        let scene = Scene::from_ron_str(&ron, "test", std::path::Path::new(".")).unwrap();
+        ShadingVariant::of(&scene.materials, &scene.lights).constants()
+    }
+
+    /// Thresholds are bands - 1, four to a vec4; models and light kinds
+    /// are bit sets (Blinn-Phong 1, toon 2; directional 1, point 2).
+    #[test]
+    fn shading_variant_counts_what_materials_and_lights_use() {
+        let sun =
+            "Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 1.0)";
+        let bulb = "Point(position: (0.0, 2.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 1.0)";
+        let values = |c: [(&str, f64); 3]| c.map(|(_, v)| v);
+        assert_eq!(
+            values(shading_of(
+                r#""a": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 5))"#,
+                sun
+            )),
+            [1.0, 2.0, 1.0]
+        );
+        assert_eq!(
+            values(shading_of(
+                r#""a": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 6)), "b": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong)"#,
+                &format!("{sun}, {bulb}")
+            )),
+            [2.0, 3.0, 3.0]
+        );
+        assert_eq!(
+            values(shading_of(
+                r#""a": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 16))"#,
+                bulb
+            )),
+            [4.0, 2.0, 2.0]
+        );
+        assert_eq!(
+            values(shading_of(
+                r#""a": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong)"#,
+                ""
+            )),
+            [1.0, 1.0, 3.0]
+        );
     }
 }

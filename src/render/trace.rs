@@ -18,10 +18,12 @@ use crate::gpu::layout::{
     read_write_storage_entry, storage_texture_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::shader::Traversal;
-use crate::gpu::twins::TRACE_WORKGROUP;
+use crate::gpu::twins::{SHAPE_MESH, TRACE_WORKGROUP};
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
-use crate::render::scene_buffers::{self, scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
+use crate::render::scene_buffers::{
+    scene_layout, SceneBuffers, ShadingVariant, PASS_GROUP, SCENE_GROUP,
+};
 use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 use crate::render::RenderSettings;
 use crate::scene::{Light, Material, Scene};
@@ -81,9 +83,11 @@ pub struct Variant {
     reflections: bool,
     glossy: bool,
     textures: bool,
-    /// `TOON_THRESHOLD_VECS` (lib/shading.wgsl): the vec4s of toon
-    /// thresholds the scene's materials fill, 1 to 4.
-    toon_threshold_vecs: u8,
+    /// `ANALYTIC_KINDS` (lib/intersect.wgsl): bit 1 << kind for each
+    /// analytic shape kind at the top level or in a CSG leaf.
+    analytic_kinds: u32,
+    /// What the materials and lights need of the shading code.
+    shading: ShadingVariant,
 }
 
 impl Variant {
@@ -105,23 +109,37 @@ impl Variant {
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
             textures: buffers.uses_textures,
-            toon_threshold_vecs: scene_buffers::toon_threshold_vecs(&scene.materials),
+            analytic_kinds: analytic_kinds(buffers),
+            shading: ShadingVariant::of(&scene.materials, &scene.lights),
         }
     }
 
     /// The override constants that select this variant in trace.wgsl.
-    fn constants(self) -> [(&'static str, f64); 7] {
+    fn constants(self) -> Vec<(&'static str, f64)> {
         let flag = |b: bool| f64::from(u8::from(b));
-        [
+        let mut constants = vec![
             ("CSG_ENABLED", flag(self.csg)),
             ("MESHES_ENABLED", flag(self.meshes)),
             ("SHADOWS_ENABLED", flag(self.shadows)),
             ("REFLECTIONS_ENABLED", flag(self.reflections)),
             ("GLOSSY_ENABLED", flag(self.glossy)),
             ("TEXTURES_ENABLED", flag(self.textures)),
-            ("TOON_THRESHOLD_VECS", f64::from(self.toon_threshold_vecs)),
-        ]
+            ("ANALYTIC_KINDS", f64::from(self.analytic_kinds)),
+        ];
+        constants.extend(self.shading.constants());
+        constants
     }
+}
+
+/// The analytic shape kinds (bit 1 << kind) of the scene's shapes and CSG
+/// leaves; meshes and CSG trees have their own switches.
+fn analytic_kinds(buffers: &SceneBuffers) -> u32 {
+    let kinds = buffers.accel.shapes.iter().map(|s| s.kind);
+    let leaves = buffers.accel.csg_leaves.iter().map(|l| l.kind);
+    kinds
+        .chain(leaves)
+        .filter(|&k| k < SHAPE_MESH)
+        .fold(0, |bits, k| bits | 1 << k)
 }
 
 /// The trace pipeline with only the code `variant` needs.
