@@ -761,8 +761,12 @@ fn floor_suite(gpu: &Gpu, args: &BenchArgs, r: &mut Report) -> anyhow::Result<()
 }
 
 /// Suite `scene`: frames of the user's own scene (case `scene`).
-fn scene_case(gpu: &Gpu, args: &BenchArgs, scene: Scene, r: &Report) -> anyhow::Result<()> {
-    let path = args.scene.as_deref().unwrap_or(std::path::Path::new("-"));
+fn scene_case(
+    gpu: &Gpu,
+    args: &BenchArgs,
+    (path, scene): (&std::path::Path, Scene),
+    r: &Report,
+) -> anyhow::Result<()> {
     let s = time_frames(gpu, scene, args.mode, args)?;
     md!(
         r,
@@ -800,7 +804,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     }
     // Suite `scene`: the file is read (and refused) before anything runs.
     let own_scene = match (args.suite.as_str(), &args.scene) {
-        ("scene", Some(path)) => Some(Scene::load(path)?),
+        ("scene", Some(path)) => Some((path.as_path(), Scene::load(path)?)),
         ("scene", None) => anyhow::bail!("bench scene: name the scene file with --scene FILE"),
         (_, Some(_)) => {
             anyhow::bail!("--scene is for the suite `scene` (celray bench scene --scene FILE)")
