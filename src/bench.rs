@@ -4,6 +4,7 @@
 
 mod accel;
 mod csg;
+mod export;
 mod floor;
 mod report;
 
@@ -49,6 +50,12 @@ pub struct BenchArgs {
     /// floor_ratio, kernels, driver) instead of Markdown tables.
     #[arg(long)]
     pub json: bool,
+    /// With suite `rays` or `all`: also write helmet_rays' world-space
+    /// triangles, its rays and celray's closest-hit distances to FILE (a new
+    /// file), for an outside ray tracer to time the same rays
+    /// (tools/embree-compare).
+    #[arg(long, value_name = "FILE")]
+    pub export_rays: Option<PathBuf>,
     /// The global `--accel` (set by main): what the frame cases walk.
     #[arg(skip)]
     pub accel: celray::render::AccelChoice,
@@ -357,17 +364,29 @@ fn ray_row(
     scene: Scene,
     args: &BenchArgs,
     r: &Report,
+    export: Option<&std::path::Path>,
 ) -> anyhow::Result<()> {
     let (mut renderer, build_ms, rays) =
         ray_renderer(gpu, scene.clone(), args, RenderSettings::default().accel)?;
     let batch = RayBatch::new(gpu)?;
     let buffers = renderer.scene_buffers();
     let mut hits = 0;
+    let mut last = Vec::new();
     let best = best_of(|| {
         let (h, s) = batch.trace_timed(gpu, buffers, &rays)?;
         hits = h.iter().filter(|h| h.instance != u32::MAX).count();
+        last = h;
         Ok(s)
     })?;
+    if let Some(path) = export {
+        export::write_rays(path, &scene, &rays, &last)?;
+        md!(
+            r,
+            "wrote {}'s triangles, rays and hits to {}",
+            case,
+            path.display()
+        );
+    }
     let accel = &buffers.accel;
     let bytes = accel.nodes.len() * 32
         + accel.triangles.len() * 96
@@ -431,7 +450,13 @@ fn rays_suite(
             helmet.clone(),
             args,
             r,
+            args.export_rays.as_deref(),
         )?;
+    } else if args.export_rays.is_some() {
+        anyhow::bail!(
+            "--export-rays exports helmet_rays: {}",
+            missing_helmet(args)
+        );
     } else {
         r.skipped("helmet_rays", &missing_helmet(args));
     }
@@ -449,6 +474,7 @@ fn rays_suite(
         grid(&spot, 10_000, 1.1),
         args,
         r,
+        None,
     )?;
     let ball = |n: usize| -> anyhow::Result<Scene> {
         let ron = format!(
@@ -475,6 +501,7 @@ fn rays_suite(
         ball(100)?,
         args,
         r,
+        None,
     )?;
 
     md!(
@@ -811,6 +838,9 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
         }
         (_, None) => None,
     };
+    if let Some(path) = &args.export_rays {
+        export::check_target(path, &args.suite)?;
+    }
     let mut report = Report {
         json: args.json,
         driver: format!("{} {}", gpu.summary.name, gpu.summary.driver),

@@ -117,6 +117,14 @@ fn counts_past_their_bounds_are_refused_naming_the_bound() {
         case(&["bench", "--frames", "4294967295"], "1 to 1000"),
         case(&["bench", "scene"], "--scene FILE"),
         case(&["bench", "raster", "--scene", "x.ron"], "suite `scene`"),
+        case(
+            &["bench", "raster", "--export-rays", "rays.bin"],
+            "suite `rays` or `all`",
+        ),
+        case(
+            &["bench", "rays", "--export-rays", "no-such-folder/rays.bin"],
+            "no-such-folder does not exist",
+        ),
     ];
     if cfg!(feature = "app") {
         // Refused before any window is opened.
@@ -127,6 +135,18 @@ fn counts_past_their_bounds_are_refused_naming_the_bound() {
         ]);
     }
     assert_refused(&dir, &cases);
+}
+
+#[test]
+fn exported_rays_never_overwrite_a_file() {
+    let dir = scratch("export");
+    std::fs::write(dir.join("rays.bin"), b"mine").unwrap();
+    let o = celray(&["bench", "rays", "--export-rays", "rays.bin"], &dir);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("rays.bin already exists"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(std::fs::read(dir.join("rays.bin")).unwrap(), b"mine");
 }
 
 #[test]
