@@ -2,7 +2,7 @@
 //! tests), mesh leaves against their analytic twins, and the errors bad CSG
 //! input gives.
 
-use celray::accel::csg::{CompiledCsg, Endpoint};
+use celray::accel::csg::{bound_may_hit, CompiledCsg, Endpoint};
 use celray::scene::{tessellate, Csg, CsgLeaf, CsgNode, Scene, Shape};
 use glam::{EulerRot, Mat4, Quat, Vec3};
 use proptest::prelude::*;
@@ -109,6 +109,102 @@ proptest! {
             }
             prop_assert!(checked > 1000);
         }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// The renderer skips a CSG tree for rays that miss its bounding
+    /// sphere, so the solid must lie inside it: for random trees (leaves
+    /// rotated, scaled 0.5-1.5x per axis and moved), every interval
+    /// endpoint of random rays is inside the sphere, and rays aimed to
+    /// pass just outside it (by 1e-3 of the radius; the sphere's own
+    /// margin is 1e-3 wider than the bound) are refused by the test and
+    /// have no interval at all.
+    #[test]
+    fn bounding_sphere_holds_the_solid(
+        root in tree_strategy(),
+        rays in prop::collection::vec((prop::array::uniform3(-4.0f32..4.0), prop::array::uniform3(-1.0f32..1.0)), 4),
+        aside in prop::collection::vec(prop::array::uniform3(-1.0f32..1.0), 4),
+    ) {
+        let csg = Csg { root: Box::new(root) };
+        if csg.check().is_err() {
+            return Ok(());
+        }
+        let program = CompiledCsg::new(&csg).unwrap();
+        let bound = csg.bounding_sphere();
+        let (c, r) = (Vec3::new(bound[0], bound[1], bound[2]), bound[3]);
+        for (origin, aim) in rays {
+            let o = Vec3::from(origin);
+            let Some(d) = (Vec3::from(aim) - o).try_normalize() else { continue };
+            for e in program.intervals(o, d).unwrap() {
+                let p = o + d * e.t;
+                prop_assert!((p - c).length() <= r, "endpoint {p} outside the sphere {c}, {r}");
+            }
+        }
+        // Rays tangent to a sphere 1e-3 wider than the bound, from 4 radii away.
+        for dir in aside {
+            let Some(d) = Vec3::from(dir).try_normalize() else { continue };
+            let side = d.any_orthonormal_vector();
+            let o = c + side * (r * 1.001) - d * (4.0 * r);
+            prop_assert!(!bound_may_hit(bound, o, d, f32::NEG_INFINITY, f32::INFINITY));
+            prop_assert!(program.intervals(o, d).unwrap().is_empty());
+        }
+    }
+}
+
+/// The bounding sphere from the math: the textbook solid (box of half
+/// size 0.8 intersected with a sphere of radius 1.05, minus cylinders)
+/// lies in the smaller of the two leaves' spheres, the ball of 1.05 (the
+/// box's own reaches 0.8 * sqrt(3) = 1.386); a union of two unit balls
+/// at x = +-2 lies in the ball of radius 3 about the origin; a unit ball
+/// scaled by 2 along x and rotated lies in a ball of radius 2. Each 0.1%
+/// wider, plus 1e-6 of (centre distance + radius).
+#[test]
+fn bounding_sphere_radius_follows_the_tree() {
+    let ball = |r: f32| Shape::Sphere { radius: r };
+    let textbook = Csg {
+        root: Box::new(CsgNode::Difference(
+            Box::new(CsgNode::Intersection(vec![
+                leaf(
+                    Shape::Box {
+                        half_extents: Vec3::splat(0.8),
+                    },
+                    Mat4::IDENTITY,
+                ),
+                leaf(ball(1.05), Mat4::IDENTITY),
+            ])),
+            Box::new(leaf(
+                Shape::Cylinder {
+                    radius: 0.45,
+                    height: 2.0,
+                },
+                Mat4::IDENTITY,
+            )),
+        )),
+    };
+    let pair = Csg {
+        root: Box::new(CsgNode::Union(vec![
+            leaf(ball(1.0), Mat4::from_translation(Vec3::X * 2.0)),
+            leaf(ball(1.0), Mat4::from_translation(Vec3::X * -2.0)),
+        ])),
+    };
+    let stretched = Csg {
+        root: Box::new(leaf(
+            ball(1.0),
+            Mat4::from_rotation_y(0.7) * Mat4::from_scale(Vec3::new(2.0, 1.0, 1.0)),
+        )),
+    };
+    for (csg, centre, radius) in [
+        (textbook, Vec3::ZERO, 1.05f32),
+        (pair, Vec3::ZERO, 3.0),
+        (stretched, Vec3::ZERO, 2.0),
+    ] {
+        let b = csg.bounding_sphere();
+        let want = radius * 1.001 + 1e-6 * radius;
+        assert!(Vec3::new(b[0], b[1], b[2]).distance(centre) < 1e-5, "{b:?}");
+        assert!((b[3] - want).abs() < 1e-5, "radius {} against {want}", b[3]);
     }
 }
 

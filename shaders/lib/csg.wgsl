@@ -254,6 +254,25 @@ fn csg_combine(st: ptr<private, CsgStore>, op: u32, a: u32, b: u32, out: u32) {
     }
 }
 
+// Whether the ray (o, d) may meet the solid in (t_min, t_max): its segment
+// there meets the bounding sphere the shape's params hold (centre, radius;
+// src/scene/csg.rs Csg::bounding_sphere, wide enough for rounding). Twin
+// of accel::csg::bound_may_hit: the line's closest point to the centre,
+// the reach 1e-5 of the origin's distance wider.
+fn csg_bound_may_hit(bound: vec4<f32>, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> bool {
+    let oc = o - bound.xyz;
+    let dd = dot(d, d);
+    let t_mid = -dot(oc, d) / dd;
+    let p = oc + d * t_mid;
+    let reach = bound.w + 1.0e-5 * length(oc);
+    let gap = reach * reach - dot(p, p);
+    if gap < 0.0 {
+        return false;
+    }
+    let half = sqrt(gap / dd);
+    return t_mid + half > t_min && t_mid - half < t_max;
+}
+
 // The closest boundary of the CSG program at `start` in (t_min, t_max), in
 // CSG object space; sets object_material.
 // Mesh leaves use the caller's traversal stack above `base`.

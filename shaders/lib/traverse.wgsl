@@ -129,6 +129,10 @@ fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, 
     let s = shapes[shape];
     object_material = CSG_NO_MATERIAL;
     if CSG_ENABLED && s.kind == SHAPE_CSG {
+        // Rays that miss the solid's bounding sphere skip the evaluation.
+        if !csg_bound_may_hit(s.params, o, d, t_min, t_max) {
+            return no_hit();
+        }
         return intersect_csg(s.blas_root, o, d, t_min, t_max, stack, base);
     }
     if s.kind == SHAPE_MESH {

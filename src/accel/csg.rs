@@ -428,6 +428,26 @@ fn mesh_crossings(
     Ok(out)
 }
 
+/// Whether the ray (o, d) may meet the solid in (t_min, t_max): its
+/// segment there meets the solid's bounding sphere (`bound`, from
+/// [`crate::scene::Csg::bounding_sphere`]). The closest point of the line
+/// to the centre, not the quadratic's discriminant, so that rounding stays
+/// small beside the radius; the reach grows by 1e-5 of the origin's
+/// distance for far rays. Twin of `csg_bound_may_hit` (lib/csg.wgsl).
+pub fn bound_may_hit(bound: [f32; 4], o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
+    let oc = o - Vec3::from_slice(&bound[..3]);
+    let dd = d.dot(d);
+    let t_mid = -oc.dot(d) / dd;
+    let p = oc + d * t_mid;
+    let reach = bound[3] + 1e-5 * oc.length();
+    let gap = reach * reach - p.dot(p);
+    if gap < 0.0 {
+        return false;
+    }
+    let half = (gap / dd).sqrt();
+    t_mid + half > t_min && t_mid - half < t_max
+}
+
 /// The closest boundary of the program's solid in (t_min, t_max): the CPU
 /// twin of `intersect_csg`. Returns the hit and the leaf material, or why
 /// the evaluation gave up; `steps` counts loop iterations.

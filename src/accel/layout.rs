@@ -49,7 +49,9 @@ pub struct GpuTriangle {
 }
 
 /// A base shape for the ray tracer: its kind, parameters (radius, half
-/// extents, height, ...) and, for meshes, the root of its bottom-level BVH.
+/// extents, height, ...; for CSG its bounding sphere, centre and radius,
+/// from [`crate::scene::Csg::bounding_sphere`]) and, for meshes, the root
+/// of its bottom-level BVH.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuShape {

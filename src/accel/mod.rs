@@ -136,7 +136,7 @@ pub(crate) fn shape_params(shape: &Shape) -> (u32, [f32; 4]) {
         }
         Shape::Plane(PlaneKind::Disk { radius }) => (SHAPE_DISK, [*radius, 0.0, 0.0, 0.0]),
         Shape::Mesh(_) => (SHAPE_MESH, [0.0; 4]),
-        Shape::Csg(_) => (SHAPE_CSG, [0.0; 4]),
+        Shape::Csg(csg) => (SHAPE_CSG, csg.bounding_sphere()),
     }
 }
 
@@ -344,6 +344,9 @@ impl SceneAccel {
                 nodes: &self.nodes,
                 triangles: &self.triangles,
             };
+            if !csg::bound_may_hit(s.params, o, d, t_min, t_max) {
+                return (None, false);
+            }
             return match csg::closest(data, s.blas_root, o, d, t_min, t_max, steps) {
                 Ok(found) => (found, false),
                 Err(_) => (None, true),

@@ -22,7 +22,7 @@
 //! Planes and disks have no inside and are refused as leaves (use a thin
 //! box).
 
-use glam::{Mat4, Vec3};
+use glam::{DMat3, DMat4, DVec3, Mat4, Vec3};
 
 use super::{Mesh, Shape};
 
@@ -170,6 +170,38 @@ impl CsgNode {
         }
     }
 
+    /// A conservative object-space bounding sphere `(centre, radius)`:
+    /// every leaf's sphere carried through its transform; a union encloses
+    /// its children's, an intersection keeps the smallest child's, a
+    /// difference its first operand's (the solid lies inside it).
+    fn bounding_sphere(&self) -> (DVec3, f64) {
+        match self {
+            CsgNode::Leaf(leaf) => {
+                let (c, r) = match &leaf.shape {
+                    Shape::Sphere { radius } => (DVec3::ZERO, f64::from(*radius)),
+                    shape => {
+                        let (lo, hi) = shape.bounds();
+                        let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+                        ((lo + hi) / 2.0, (hi - lo).length() / 2.0)
+                    }
+                };
+                let m = leaf.csg_from_leaf.as_dmat4();
+                (m.transform_point3(c), r * stretch_bound(&m))
+            }
+            CsgNode::Union(c) => c
+                .iter()
+                .map(CsgNode::bounding_sphere)
+                .reduce(enclose)
+                .expect("a union has children (checked at load)"),
+            CsgNode::Intersection(c) => c
+                .iter()
+                .map(CsgNode::bounding_sphere)
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .expect("an intersection has children (checked at load)"),
+            CsgNode::Difference(a, _) => a.bounding_sphere(),
+        }
+    }
+
     /// Point membership (the tree's point test): is `p` (object space)
     /// inside the solid? Mesh leaves count crossings of a ray along +x.
     pub fn contains(&self, p: Vec3) -> bool {
@@ -180,6 +212,32 @@ impl CsgNode {
             CsgNode::Difference(a, b) => a.contains(p) && !b.contains(p),
         }
     }
+}
+
+/// An upper bound of how much the linear part of `m` can stretch a length:
+/// the square root of a Gershgorin bound of the largest eigenvalue of
+/// `A^T A` (exact for a rotation with uniform scale).
+fn stretch_bound(m: &DMat4) -> f64 {
+    let a = DMat3::from_mat4(*m);
+    let ata = a.transpose() * a;
+    let rows = [ata.row(0), ata.row(1), ata.row(2)];
+    rows.iter()
+        .map(|r| r.abs().element_sum())
+        .fold(0.0, f64::max)
+        .sqrt()
+}
+
+/// The smallest sphere enclosing spheres `a` and `b`.
+fn enclose(a: (DVec3, f64), b: (DVec3, f64)) -> (DVec3, f64) {
+    let d = (b.0 - a.0).length();
+    if d + b.1 <= a.1 {
+        return a;
+    }
+    if d + a.1 <= b.1 {
+        return b;
+    }
+    let r = (d + a.1 + b.1) / 2.0;
+    (a.0 + (b.0 - a.0) * ((r - a.1) / d), r)
 }
 
 fn leaf_contains(leaf: &CsgLeaf, p: Vec3) -> bool {
@@ -234,6 +292,27 @@ impl Csg {
             // Provably empty: a tiny box at the origin keeps the BVH finite.
             (Vec3::ZERO, Vec3::ZERO)
         }
+    }
+
+    /// A sphere around the solid in object space, `[x, y, z, radius]`, with
+    /// room to spare: the tighter of the tree's own sphere and the sphere
+    /// around [`Csg::bounds`], 0.1% wider (plus 1e-6 of its distance from
+    /// the origin) so that rounding in a ray's test against it can never
+    /// miss a ray that meets the solid. A ray that misses it meets no leaf
+    /// of the solid's positive part, so its intervals are empty: the
+    /// renderer skips evaluating the tree for it (`GpuShape::params`).
+    pub fn bounding_sphere(&self) -> [f32; 4] {
+        let (mut c, mut r) = self.root.bounding_sphere();
+        let (lo, hi) = self.root.bounds();
+        if lo.cmple(hi).all() {
+            let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+            let half_diagonal = (hi - lo).length() / 2.0;
+            if half_diagonal < r {
+                (c, r) = ((lo + hi) / 2.0, half_diagonal);
+            }
+        }
+        let r = r * 1.001 + 1e-6 * (c.length() + r);
+        [c.x as f32, c.y as f32, c.z as f32, r as f32]
     }
 
     /// Checks leaves (sizes, transforms, closed meshes, no planes), empty
