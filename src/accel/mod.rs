@@ -338,15 +338,16 @@ impl SceneAccel {
     ) -> (Option<(intersect::ObjectHit, u32)>, bool) {
         let s = self.shapes[shape as usize];
         if s.kind == SHAPE_CSG {
+            // Rays that miss the solid's bounding sphere skip the evaluation.
+            if !csg::bound_may_hit(s.params, o, d, t_min, t_max) {
+                return (None, false);
+            }
             let data = csg::CsgData {
                 ops: &self.csg_ops,
                 leaves: &self.csg_leaves,
                 nodes: &self.nodes,
                 triangles: &self.triangles,
             };
-            if !csg::bound_may_hit(s.params, o, d, t_min, t_max) {
-                return (None, false);
-            }
             return match csg::closest(data, s.blas_root, o, d, t_min, t_max, steps) {
                 Ok(found) => (found, false),
                 Err(_) => (None, true),
