@@ -1,13 +1,33 @@
 // Outline tiles: before the accumulate pass, one invocation per accumulate
-// workgroup tile marks whether the tile, with its halo of the outline
-// radius, holds a texel that could draw an outline on another pixel: an
-// object whose material's outline is at least 1 px wide (a narrower one
-// reaches no other pixel). The accumulate pass reads the mark once per
-// workgroup and skips loading the tile, its barrier and the search where
-// it is clear: the floor and the sky, outlined by nothing, are most of
-// many scenes. One invocation walks a whole tile, so this kernel needs no
-// workgroup memory and no barrier (on the CPU driver a barrier costs
-// about as much as the loads it orders).
+// workgroup tile decides whether any pixel of the tile can take an outline,
+// and writes 1 (search) or 0 (skip). The accumulate pass reads the mark
+// once per workgroup and skips loading the tile, its barrier and the
+// search where it is 0. One invocation walks a whole tile, so this kernel
+// needs no workgroup memory and no barrier (on the CPU driver a barrier
+// costs about as much as the loads it orders).
+//
+// A tile is skipped when it is provably outline-free under the accumulate
+// pass's rule (shaders/accumulate.wgsl, outline_at), in one of two ways:
+// 1. Nothing within reach draws outlines: no texel of the tile or its halo
+//    (the outline radius r) is a *source*, an object whose material's
+//    outline is at least 1 px wide (a narrower one reaches no other pixel:
+//    the nearest is 1 px away). The floor and the sky are most of many
+//    scenes.
+// 2. The tile is the smooth inside of one object: every texel of the tile
+//    and its halo is that object (so no pixel has another object or the
+//    background near it), and no two texels the search compares can make
+//    a depth edge or a crease. The search compares pixels at most r apart
+//    in x and in y, so a path of at most L = 2r steps between neighbouring
+//    texels joins them, inside the tile and halo. Bounds on every
+//    neighbouring pair then bound every compared pair along such a path:
+//    view depths within a factor s = 0.96^(1/L) of each other make any two
+//    within 0.96 (an edge needs 0.95), and normals at most 54 degrees / L
+//    apart make any two at most 54 degrees apart (a crease needs 60; the
+//    angle between directions obeys the triangle inequality), with every
+//    normal at least 0.949 long, so their dot product is at least
+//    0.9 * cos(54) = 0.53 against the crease's 0.5. The margins are far
+//    wider than the rounding of these tests, so a skipped tile's search
+//    would have found nothing, and the image does not change.
 
 #include "lib/types.wgsl"
 #include "lib/scene_bindings.wgsl"
@@ -15,12 +35,27 @@
 // Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
 @group(1) @binding(0) var<uniform> frame: FrameUniforms;
 @group(1) @binding(1) var id_tex: texture_2d<u32>;
+@group(1) @binding(2) var normal_depth_tex: texture_2d<f32>;
 // One word per accumulate workgroup, row by row: 1 where the tile may
 // take an outline.
-@group(1) @binding(2) var<storage, read_write> tile_marks: array<u32>;
+@group(1) @binding(3) var<storage, read_write> tile_marks: array<u32>;
 
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP (the tile's
-// side), MAX_OUTLINE_RADIUS and OUTLINE_TILES_WORKGROUP.
+// side), MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP and DEPTH_JUMP.
+
+// Whether two neighbouring texels (normal xyz, view depth w) are close
+// enough for way 2 with per-step bounds depth_step and cos_step. Written
+// so that a NaN anywhere fails it.
+fn smooth_pair(a: vec4<f32>, b: vec4<f32>, depth_step: f32, cos_step: f32) -> bool {
+    let aa = dot(a.xyz, a.xyz);
+    let bb = dot(b.xyz, b.xyz);
+    return a.w >= b.w * depth_step && b.w >= a.w * depth_step && aa >= 0.9 && bb >= 0.9
+        && dot(a.xyz, b.xyz) >= cos_step * sqrt(aa * bb);
+}
+
+fn outline_width(id: u32) -> f32 {
+    return materials[instances[id - 1u].material].outline_width_px;
+}
 
 @compute @workgroup_size(OUTLINE_TILES_WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -32,17 +67,62 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r = i32(floor(min(frame.max_outline_px, f32(MAX_OUTLINE_RADIUS))));
     let tile = vec2<i32>(vec2<u32>(gid.x % tiles.x, gid.x / tiles.x) * ACCUMULATE_WORKGROUP);
     let size = vec2<i32>(frame.size_px);
+    let core_hi = min(tile + vec2<i32>(i32(ACCUMULATE_WORKGROUP)), size);
     let lo = max(tile - vec2<i32>(r), vec2<i32>(0));
-    let hi = min(tile + vec2<i32>(i32(ACCUMULATE_WORKGROUP) + r), size);
-    var mark = 0u;
-    for (var y = lo.y; y < hi.y && mark == 0u; y++) {
+    let hi = min(core_hi + vec2<i32>(r), size);
+
+    // Way 2's per-step bounds for paths of L = 2r steps: depths within
+    // 0.96 end to end (an edge is DEPTH_JUMP = 5%), normals within 54
+    // degrees (0.9 of accumulate.wgsl's 60-degree CREASE_COS).
+    let steps = f32(2 * max(r, 1));
+    let depth_step = pow(1.0 - 0.8 * DEPTH_JUMP, 1.0 / steps);
+    let cos_step = cos(radians(54.0) / steps);
+
+    var any_source = false;
+    // Still possibly the smooth inside of one object (way 2). Only worth
+    // proving for an outlined object: a tile that is all one object
+    // without an outline holds no source, and way 1 skips it (reading ids
+    // only).
+    let object = textureLoad(id_tex, lo, 0).x;
+    var last_id = object;
+    var last_width = 0.0;
+    if object != 0u {
+        last_width = outline_width(object);
+    }
+    var quiet = last_width >= 1.0;
+    var left = vec4<f32>(0.0);
+    for (var y = lo.y; y < hi.y; y++) {
         for (var x = lo.x; x < hi.x; x++) {
-            let id = textureLoad(id_tex, vec2<i32>(x, y), 0).x;
-            if id != 0u && materials[instances[id - 1u].material].outline_width_px >= 1.0 {
-                mark = 1u;
+            let q = vec2<i32>(x, y);
+            let id = textureLoad(id_tex, q, 0).x;
+            quiet = quiet && id == object;
+            if id != 0u && !any_source {
+                if id != last_id {
+                    last_id = id;
+                    last_width = outline_width(id);
+                }
+                any_source = last_width >= 1.0;
+            }
+            if quiet {
+                let nd = textureLoad(normal_depth_tex, q, 0);
+                if x > lo.x {
+                    quiet = smooth_pair(nd, left, depth_step, cos_step);
+                }
+                if y > lo.y {
+                    let up = textureLoad(normal_depth_tex, q - vec2<i32>(0, 1), 0);
+                    quiet = quiet && smooth_pair(nd, up, depth_step, cos_step);
+                }
+                // Each texel also meets the search alone (p = q).
+                quiet = quiet && nd.w > 0.0 && dot(nd.xyz, nd.xyz) >= 0.9;
+                left = nd;
+            }
+            if any_source && !quiet {
                 break;
             }
         }
+        if any_source && !quiet {
+            break;
+        }
     }
-    tile_marks[gid.x] = mark;
+    tile_marks[gid.x] = select(0u, 1u, any_source && !quiet);
 }

@@ -324,3 +324,252 @@ fn wide_outline_ring_is_whole_across_tiles_and_image_edges() {
         );
     }
 }
+
+/// Crease angle of the accumulate pass's outline rule (shaders/accumulate.wgsl,
+/// `CREASE_COS`): normals more than 60 degrees apart.
+const CREASE_COS: f32 = 0.5;
+
+/// The outline rule of shaders/accumulate.wgsl (`outline_at`) evaluated on
+/// the CPU from read-back G-buffers, for scenes whose objects all have
+/// outlines `width` px wide: pixel p is outlined iff some object pixel q
+/// with dx^2 + dy^2 <= width^2 makes an edge with p (p is background; q is
+/// DEPTH_JUMP in front; q is another object and nearer; or the normals are
+/// over 60 degrees apart and q is not behind). `None` where a comparison
+/// lies so near its threshold that the GPU's rounding (a fused dot
+/// product, 1e-7 relative) could decide it either way: 1e-4 in the dot
+/// product and 1e-5 relative in depth are far wider than that.
+fn outline_rule(ids: &[u32], nd: &[[f32; 4]], w: u32, h: u32, width: f32) -> Vec<Option<bool>> {
+    let r = width.floor() as i64;
+    let front = 1.0 - celray::gpu::twins::DEPTH_JUMP;
+    let mut out = Vec::with_capacity(ids.len());
+    for y in 0..i64::from(h) {
+        for x in 0..i64::from(w) {
+            let p = (y * i64::from(w) + x) as usize;
+            let (id_p, nd_p) = (ids[p], nd[p]);
+            let (mut edge, mut unsure) = (false, false);
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    let (qx, qy) = (x + dx, y + dy);
+                    if qx < 0 || qy < 0 || qx >= i64::from(w) || qy >= i64::from(h) {
+                        continue;
+                    }
+                    let q = (qy * i64::from(w) + qx) as usize;
+                    if ids[q] == 0 || (dx * dx + dy * dy) as f32 > width * width {
+                        continue;
+                    }
+                    if id_p == 0 {
+                        edge = true;
+                        continue;
+                    }
+                    let nd_q = nd[q];
+                    let jump = nd_p[3] * front;
+                    let dot = nd_q[0] * nd_p[0] + nd_q[1] * nd_p[1] + nd_q[2] * nd_p[2];
+                    edge |= nd_q[3] < jump
+                        || (ids[q] != id_p && nd_q[3] < nd_p[3])
+                        || (dot < CREASE_COS && nd_q[3] <= nd_p[3]);
+                    unsure |= (nd_q[3] - jump).abs() <= 1e-5 * nd_p[3]
+                        || ((dot - CREASE_COS).abs() <= 1e-4 && nd_q[3] <= nd_p[3]);
+                }
+            }
+            out.push(if edge || !unsure { Some(edge) } else { None });
+        }
+    }
+    out
+}
+
+/// Renders `ron` (objects with 3 px magenta outlines on black, shading
+/// that never makes magenta) at one sample per pixel centre and checks
+/// every pixel against [`outline_rule`]; returns the renderer for more
+/// checks and the number of outlined pixels inside objects (crease and
+/// depth edges, not silhouettes).
+fn assert_outlines_follow_the_rule(
+    gpu: &celray::gpu::Gpu,
+    ron: &str,
+    mode: RenderMode,
+) -> (celray::render::Renderer, usize) {
+    let scene = scene(ron);
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let settings = RenderSettings {
+        mode,
+        ..pixel_centre_settings(&scene)
+    };
+    let r = rendered(gpu, scene, settings);
+    let img = r.read_srgb8(gpu).unwrap();
+    let ids = r.read_ids(gpu).unwrap();
+    let nd = r.read_normal_depth(gpu).unwrap();
+    let rule = outline_rule(&ids, &nd, w, h, 3.0);
+    let (mut inside, mut unsure) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            let Some(expected) = rule[i] else {
+                unsure += 1;
+                continue;
+            };
+            let outlined = rgb_at(&img, w, x, y) == [255, 0, 255];
+            assert_eq!(
+                outlined,
+                expected,
+                "{}: pixel ({x},{y}) (id {}) outlined {outlined}, the rule says {expected}",
+                mode.name(),
+                ids[i]
+            );
+            inside += usize::from(expected && ids[i] != 0);
+        }
+    }
+    assert!(
+        unsure * 1000 < rule.len(),
+        "{}: {unsure} pixels too near a threshold to check",
+        mode.name()
+    );
+    (r, inside)
+}
+
+/// Outlines inside one object, where the accumulate pass's tile marks
+/// (shaders/outline_tiles.wgsl) decide whether a tile's search may be
+/// skipped from bounds on its depths and normals: the textbook CSG solid
+/// (box edges are 90-degree creases, the bores' far walls lie over 5%
+/// deeper than the faces around them) and a box turned to show three
+/// faces, every pixel against the rule. A skip that ignored normals or
+/// depths would lose these outlines.
+#[test]
+fn outlines_inside_one_object_follow_the_rule() {
+    let gpu = gpu();
+    let ron = r#"(version: 1,
+        camera: (eye: (0.0, 6.0, 19.0), target: (0.0, 0.3, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 10.0, width: 320, height: 240),
+        ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+        lights: [Directional(direction: (-0.3, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: {
+            "solid": (base_color: (0.85, 0.25, 0.15), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 4),
+                      outline_color: (1.0, 0.0, 1.0), outline_width_px: 3.0),
+            "bore": (base_color: (0.2, 0.45, 0.85), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 4)),
+        },
+        shapes: {
+            "textbook": Difference(
+                Intersection([Box(half_extents: (0.8, 0.8, 0.8)), Sphere(radius: 1.05)]),
+                Union([
+                    Cylinder(radius: 0.45, height: 2.0, material: "bore"),
+                    Cylinder(radius: 0.45, height: 2.0, transform: (rotate_deg: (90.0, 0.0, 0.0)), material: "bore"),
+                    Cylinder(radius: 0.45, height: 2.0, transform: (rotate_deg: (0.0, 0.0, 90.0)), material: "bore"),
+                ]),
+            ),
+            "box": Box(half_extents: (0.5, 0.5, 0.5)),
+        },
+        instances: [
+            (shape: "textbook", material: "solid", transform: (translate: (-1.0, 0.3, 0.0), rotate_deg: (0.0, 30.0, 0.0))),
+            (shape: "box", material: "solid", transform: (translate: (1.3, 0.3, 0.0), rotate_deg: (25.0, 40.0, 0.0))),
+        ],
+    )"#;
+    for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+        let (_, inside) = assert_outlines_follow_the_rule(&gpu, ron, mode);
+        // Raster mode draws the box alone (it draws nothing for CSG): its
+        // three visible edges, 3 px on one side, some 60 px long each.
+        assert!(
+            inside > 200,
+            "{}: {inside} outlined pixels inside objects",
+            mode.name()
+        );
+    }
+    // A depth edge alone: one CSG union of two boxes seen head-on, a small
+    // one 2 units in front of a wide one. Every visible face faces the
+    // camera (normal +z), and the front face lies at depth 19.5 against
+    // the back one's 21.5 (0.907 of it, past the 0.95 of an edge), so only
+    // the depth bound can tell the tiles along the small box's border from
+    // the quiet ones.
+    let stacked = r#"(version: 1,
+        camera: (eye: (0.0, 0.0, 20.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 10.0, width: 256, height: 192),
+        ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+        lights: [Directional(direction: (0.0, 0.0, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "solid": (base_color: (0.85, 0.25, 0.15), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 4),
+                               outline_color: (1.0, 0.0, 1.0), outline_width_px: 3.0) },
+        shapes: { "stacked": Union([
+            Box(half_extents: (0.4, 0.4, 0.5)),
+            Box(half_extents: (1.2, 1.0, 0.5), transform: (translate: (0.0, 0.0, -2.0))),
+        ]) },
+        instances: [(shape: "stacked", material: "solid")],
+    )"#;
+    let (_, inside) = assert_outlines_follow_the_rule(&gpu, stacked, RenderMode::Raytrace);
+    // The small box's square border, 3 px wide on the wide box's face,
+    // some 60 px a side.
+    assert!(
+        inside > 400,
+        "stacked boxes: {inside} outlined pixels inside the union"
+    );
+}
+
+/// A unit sphere seen head-on from z = 5 (fov 20 degrees, 384 x 288: about
+/// 167 px across its radius) with a 3 px outline: every pixel follows the
+/// rule, and the tiles in the middle of its disc are skipped. The marks
+/// (shaders/outline_tiles.wgsl) skip a tile that is all one object when
+/// neighbouring texels' view depths are within 0.96^(1/6) = 0.9932 of each
+/// other and their normals within 54/6 = 9 degrees (paths of 2r = 6
+/// steps). Where every texel of a tile and its 3 px halo is the sphere
+/// with normal.z >= 0.95, the surface is the cap within 18.2 degrees of
+/// the view axis: one pixel (1/167 unit) turns the normal by at most
+/// 1/(167 * 0.95) rad = 0.36 degrees and moves the depth (about 4) by at
+/// most 0.33/167 = 0.002, 0.05% of it. Such a tile can take no outline,
+/// and its search must be skipped (a mark that bounded too loosely would
+/// not). Tiles that hold both the sphere and the background must be
+/// searched.
+#[test]
+fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
+    let gpu = gpu();
+    let (w, h, tile, halo) = (384u32, 288u32, 16u32, 3i64);
+    let ron = format!(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 20.0, width: {w}, height: {h}),
+            ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+            lights: [Directional(direction: (-0.5, -0.5, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: {{ "m": (base_color: (0.2, 0.8, 0.2), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 3),
+                           outline_color: (1.0, 0.0, 1.0), outline_width_px: 3.0) }},
+            shapes: {{ "ball": Sphere(radius: 1.0) }},
+            instances: [(shape: "ball", material: "m")],
+        )"#
+    );
+    for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+        let (r, _) = assert_outlines_follow_the_rule(&gpu, &ron, mode);
+        let ids = r.read_ids(&gpu).unwrap();
+        let nd = r.read_normal_depth(&gpu).unwrap();
+        let marks = r.read_outline_tile_marks(&gpu).unwrap();
+        let tiles_x = w.div_ceil(tile);
+        assert_eq!(marks.len() as u32, tiles_x * h.div_ceil(tile));
+        let (mut quiet, mut silhouette) = (0, 0);
+        for (t, &mark) in marks.iter().enumerate() {
+            let (tx, ty) = (t as u32 % tiles_x, t as u32 / tiles_x);
+            let texels = |margin: i64| {
+                let x0 = i64::from(tx * tile) - margin;
+                let y0 = i64::from(ty * tile) - margin;
+                let span = i64::from(tile) + 2 * margin;
+                (y0..y0 + span)
+                    .flat_map(move |y| (x0..x0 + span).map(move |x| (x, y)))
+                    .filter(|&(x, y)| x >= 0 && y >= 0 && x < i64::from(w) && y < i64::from(h))
+                    .map(|(x, y)| (y * i64::from(w) + x) as usize)
+            };
+            if texels(halo).all(|i| ids[i] != 0 && nd[i][2] >= 0.95) {
+                quiet += 1;
+                assert_eq!(
+                    mark,
+                    0,
+                    "{}: tile ({tx},{ty}) is quiet but searched",
+                    mode.name()
+                );
+            }
+            let mut core = texels(0).map(|i| ids[i] != 0);
+            let first = core.next().unwrap();
+            if core.any(|s| s != first) {
+                silhouette += 1;
+                assert_eq!(
+                    mark,
+                    1,
+                    "{}: tile ({tx},{ty}) on the silhouette was skipped",
+                    mode.name()
+                );
+            }
+        }
+        assert!(
+            quiet >= 4 && silhouette >= 20,
+            "{}: {quiet} quiet, {silhouette} silhouette tiles",
+            mode.name()
+        );
+    }
+}

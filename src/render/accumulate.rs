@@ -3,14 +3,15 @@
 //! pixel's outline); group 1 is [`PASS_LAYOUT`] (frame uniforms, one
 //! G-buffer, the accumulator, the tile marks). When the scene has
 //! outlines, a first dispatch (`shaders/outline_tiles.wgsl`, group 1
-//! [`TILES_LAYOUT`]) marks the workgroup tiles that hold an outlined
-//! object, and the accumulate kernel searches only those.
+//! [`TILES_LAYOUT`]) marks the workgroup tiles where some pixel may take
+//! an outline (an outlined object in reach that is not provably the quiet
+//! inside of one object), and the accumulate kernel searches only those.
 
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::twins::{ACCUMULATE_WORKGROUP, OUTLINE_TILES_WORKGROUP};
-use crate::gpu::{shader, Gpu, GpuError};
+use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
 use crate::render::targets::{GBuffer, Targets};
 
@@ -29,10 +30,11 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 6] = [
 
 /// Group 1 of the tile-marking dispatch, binding by binding as
 /// `shaders/outline_tiles.wgsl` declares it.
-pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 3] = [
+pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 4] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     texture_entry(1, wgpu::TextureSampleType::Uint), // id_tex
-    read_write_storage_entry(2),                   // tile_marks
+    texture_entry(2, FLOAT),                       // normal_depth_tex
+    read_write_storage_entry(3),                   // tile_marks
 ];
 
 pub struct AccumulatePass {
@@ -46,6 +48,9 @@ pub struct AccumulatePass {
     /// groups and the tile-marking groups.
     bind_groups: Option<[wgpu::BindGroup; 2]>,
     tiles_groups: Option<[wgpu::BindGroup; 2]>,
+    /// One word per tile: 1 where the accumulate kernel searched for
+    /// outlines in the last sample (when the scene has outlines).
+    marks: Option<wgpu::Buffer>,
 }
 
 /// The number of accumulate workgroups (tiles) of a target, across and down.
@@ -99,6 +104,7 @@ impl AccumulatePass {
                 scene_group: None,
                 bind_groups: None,
                 tiles_groups: None,
+                marks: None,
             }
         })
     }
@@ -117,7 +123,7 @@ impl AccumulatePass {
         let marks = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("outline tile marks"),
             size: u64::from(tiles_x * tiles_y) * 4,
-            usage: wgpu::BufferUsages::STORAGE,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
         let group = |label, layout, entries: &[(u32, wgpu::BindingResource)]| {
@@ -155,13 +161,15 @@ impl AccumulatePass {
         };
         let marking = |label, g: &GBuffer| {
             let id = g.id.create_view(&Default::default());
+            let normal_depth = g.normal_depth.create_view(&Default::default());
             group(
                 label,
                 &self.tiles_layout,
                 &[
                     (0, frame.as_entire_binding()),
                     (1, wgpu::BindingResource::TextureView(&id)),
-                    (2, marks.as_entire_binding()),
+                    (2, wgpu::BindingResource::TextureView(&normal_depth)),
+                    (3, marks.as_entire_binding()),
                 ],
             )
         };
@@ -174,6 +182,19 @@ impl AccumulatePass {
             marking("outline tiles bind group (raster)", &targets.raster),
             marking("outline tiles bind group (traced)", &targets.traced),
         ]);
+        self.marks = Some(marks);
+    }
+
+    /// The tile marks of the last sample, one per accumulate tile, row by
+    /// row: 1 where the outline search ran, 0 where it was skipped. For
+    /// tests; meaningful only when the scene has outlines.
+    pub fn read_tile_marks(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
+        let marks = self
+            .marks
+            .as_ref()
+            .ok_or_else(|| GpuError::Readback("the accumulate pass is not prepared".into()))?;
+        let bytes = readback::copy_and_read(gpu, marks, marks.size(), "tile marks readback")?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
     /// Both dispatches in one compute pass (one timer span): the tile

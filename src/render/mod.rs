@@ -766,12 +766,29 @@ impl Renderer {
     /// (see [`SceneBuffers::instance_order`]). For tests (picking is
     /// [`Renderer::pick`], on the CPU).
     pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
-        let g = if self.settings.mode == RenderMode::Raster {
+        let bytes = readback::read_texture(gpu, &self.gbuffer().id, 4)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+
+    /// The G-buffer's normal (xyz, world space) and view depth (w) per
+    /// pixel, as the accumulate pass's outline search reads them. For tests.
+    pub fn read_normal_depth(&self, gpu: &Gpu) -> Result<Vec<[f32; 4]>, GpuError> {
+        let bytes = readback::read_texture(gpu, &self.gbuffer().normal_depth, 16)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+
+    /// Per accumulate tile (16 x 16 pixels, row by row), whether the last
+    /// sample's outline search ran there (1) or was skipped (0). For tests.
+    pub fn read_outline_tile_marks(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
+        self.accumulate.read_tile_marks(gpu)
+    }
+
+    /// The G-buffer the accumulate pass reads in this mode.
+    fn gbuffer(&self) -> &targets::GBuffer {
+        if self.settings.mode == RenderMode::Raster {
             &self.targets.raster
         } else {
             &self.targets.traced
-        };
-        let bytes = readback::read_texture(gpu, &g.id, 4)?;
-        Ok(bytemuck::cast_slice(&bytes).to_vec())
+        }
     }
 }
