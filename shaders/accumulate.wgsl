@@ -11,8 +11,9 @@
 @group(1) @binding(2) var normal_depth_tex: texture_2d<f32>;
 @group(1) @binding(3) var id_tex: texture_2d<u32>;
 @group(1) @binding(4) var<storage, read_write> accum: array<vec4<f32>>;
-// From shaders/outline_tiles.wgsl, run just before: 1 where this
-// workgroup's tile (with its halo) holds an outlined object. Read-only
+// From shaders/outline_tiles.wgsl, run just before: 1 where a pixel of
+// this workgroup's tile may take an outline (an outlined object in reach,
+// and the tile not provably the smooth inside of one object). Read-only
 // storage read at the workgroup's own index is uniform, so the tile load
 // and its barrier can sit under it.
 @group(1) @binding(5) var<storage, read> tile_marks: array<u32>;
