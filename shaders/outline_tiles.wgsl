@@ -43,14 +43,12 @@
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP (the tile's
 // side), MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP and DEPTH_JUMP.
 
-// Whether two neighbouring texels (normal xyz, view depth w) are close
-// enough for way 2 with per-step bounds depth_step and cos_step. Written
-// so that a NaN anywhere fails it.
+// Whether two neighbouring texels (normal xyz, view depth w), each already
+// checked on its own, are close enough for way 2 with per-step bounds
+// depth_step and cos_step. Written so that a NaN anywhere fails it.
 fn smooth_pair(a: vec4<f32>, b: vec4<f32>, depth_step: f32, cos_step: f32) -> bool {
-    let aa = dot(a.xyz, a.xyz);
-    let bb = dot(b.xyz, b.xyz);
-    return a.w >= b.w * depth_step && b.w >= a.w * depth_step && aa >= 0.9 && bb >= 0.9
-        && dot(a.xyz, b.xyz) >= cos_step * sqrt(aa * bb);
+    return a.w >= b.w * depth_step && b.w >= a.w * depth_step
+        && dot(a.xyz, b.xyz) >= cos_step * sqrt(dot(a.xyz, a.xyz) * dot(b.xyz, b.xyz));
 }
 
 fn outline_width(id: u32) -> f32 {
@@ -105,15 +103,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             if quiet {
                 let nd = textureLoad(normal_depth_tex, q, 0);
+                // Each texel on its own (it also meets the search as p = q):
+                // in front of the eye, its normal at least 0.949 long. The
+                // left and upper neighbours passed this when they were read.
+                quiet = nd.w > 0.0 && dot(nd.xyz, nd.xyz) >= 0.9;
                 if x > lo.x {
-                    quiet = smooth_pair(nd, left, depth_step, cos_step);
+                    quiet = quiet && smooth_pair(nd, left, depth_step, cos_step);
                 }
                 if y > lo.y {
                     let up = textureLoad(normal_depth_tex, q - vec2<i32>(0, 1), 0);
                     quiet = quiet && smooth_pair(nd, up, depth_step, cos_step);
                 }
-                // Each texel also meets the search alone (p = q).
-                quiet = quiet && nd.w > 0.0 && dot(nd.xyz, nd.xyz) >= 0.9;
                 left = nd;
             }
             if any_source && !quiet {

@@ -379,14 +379,22 @@ fn outline_rule(ids: &[u32], nd: &[[f32; 4]], w: u32, h: u32, width: f32) -> Vec
 
 /// Renders `ron` (objects with 3 px magenta outlines on black, shading
 /// that never makes magenta) at one sample per pixel centre and checks
-/// every pixel against [`outline_rule`]; returns the renderer for more
-/// checks and the number of outlined pixels inside objects (crease and
-/// depth edges, not silhouettes).
+/// every pixel against [`outline_rule`]. Returns what more checks need:
+/// the renderer, the read-back ids and normal + depth, and the number of
+/// outlined pixels inside objects (crease and depth edges, not
+/// silhouettes).
+struct OutlineCheck {
+    renderer: celray::render::Renderer,
+    ids: Vec<u32>,
+    normal_depth: Vec<[f32; 4]>,
+    inside: usize,
+}
+
 fn assert_outlines_follow_the_rule(
     gpu: &celray::gpu::Gpu,
     ron: &str,
     mode: RenderMode,
-) -> (celray::render::Renderer, usize) {
+) -> OutlineCheck {
     let scene = scene(ron);
     let (w, h) = (scene.camera.width, scene.camera.height);
     let settings = RenderSettings {
@@ -422,7 +430,12 @@ fn assert_outlines_follow_the_rule(
         "{}: {unsure} pixels too near a threshold to check",
         mode.name()
     );
-    (r, inside)
+    OutlineCheck {
+        renderer: r,
+        ids,
+        normal_depth: nd,
+        inside,
+    }
 }
 
 /// Outlines inside one object, where the accumulate pass's tile marks
@@ -461,7 +474,7 @@ fn outlines_inside_one_object_follow_the_rule() {
         ],
     )"#;
     for mode in [RenderMode::Raster, RenderMode::Raytrace] {
-        let (_, inside) = assert_outlines_follow_the_rule(&gpu, ron, mode);
+        let inside = assert_outlines_follow_the_rule(&gpu, ron, mode).inside;
         // Raster mode draws the box alone (it draws nothing for CSG): its
         // three visible edges, 3 px on one side, some 60 px long each.
         assert!(
@@ -488,7 +501,7 @@ fn outlines_inside_one_object_follow_the_rule() {
         ]) },
         instances: [(shape: "stacked", material: "solid")],
     )"#;
-    let (_, inside) = assert_outlines_follow_the_rule(&gpu, stacked, RenderMode::Raytrace);
+    let inside = assert_outlines_follow_the_rule(&gpu, stacked, RenderMode::Raytrace).inside;
     // The small box's square border, 3 px wide on the wide box's face,
     // some 60 px a side.
     assert!(
@@ -527,9 +540,12 @@ fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
         )"#
     );
     for mode in [RenderMode::Raster, RenderMode::Raytrace] {
-        let (r, _) = assert_outlines_follow_the_rule(&gpu, &ron, mode);
-        let ids = r.read_ids(&gpu).unwrap();
-        let nd = r.read_normal_depth(&gpu).unwrap();
+        let OutlineCheck {
+            renderer: r,
+            ids,
+            normal_depth: nd,
+            ..
+        } = assert_outlines_follow_the_rule(&gpu, &ron, mode);
         let marks = r.read_outline_tile_marks(&gpu).unwrap();
         let tiles_x = w.div_ceil(tile);
         assert_eq!(marks.len() as u32, tiles_x * h.div_ceil(tile));

@@ -4,7 +4,7 @@
 //! G-buffer, the accumulator, the tile marks). When the scene has
 //! outlines, a first dispatch (`shaders/outline_tiles.wgsl`, group 1
 //! [`TILES_LAYOUT`]) marks the workgroup tiles where some pixel may take
-//! an outline (an outlined object in reach that is not provably the quiet
+//! an outline (an outlined object in reach that is not provably the smooth
 //! inside of one object), and the accumulate kernel searches only those.
 
 use crate::gpu::layout::{
