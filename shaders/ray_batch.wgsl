@@ -1,7 +1,8 @@
-// Ray-batch kernel: the closest hit of each ray in a buffer, by the same
-// traversal the trace pass runs. Used by tests (GPU against the CPU
-// reference) and benchmarks; each ray gets the per-query step budget the
-// CPU reference uses.
+// Ray-batch kernel: the closest hit (or, built with ANY_HIT, any hit: the
+// shadow-ray query) of each ray in a buffer, by the same traversal the
+// trace pass runs. Used by tests (GPU against the CPU reference) and
+// benchmarks; each ray gets the per-query step budget the CPU reference
+// uses.
 
 #include "lib/types.wgsl"
 #include "lib/scene_bindings.wgsl"
@@ -15,6 +16,9 @@
 
 // RAY_BATCH_WORKGROUP: lib/limits.wgsl (generated).
 
+// True: each ray stops at the first hit it finds (what a shadow ray asks).
+override ANY_HIT: bool = false;
+
 @compute @workgroup_size(RAY_BATCH_WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -24,7 +28,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     steps_left = MAX_TRAVERSAL_STEPS;
     overflowed = false;
     let ray = rays[i];
-    let h = trace(ray.origin.xyz, ray.dir.xyz, ray.origin.w, ray.dir.w, false, false);
+    let h = trace(ray.origin.xyz, ray.dir.xyz, ray.origin.w, ray.dir.w, false, ANY_HIT);
     var out: GpuHit;
     out.t = h.t;
     out.instance = h.instance;

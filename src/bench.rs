@@ -19,7 +19,7 @@ use celray::gpu::twins::GpuRay;
 use celray::gpu::Gpu;
 use celray::render::ray_batch::RayBatch;
 use celray::render::{AccelChoice, RenderMode, RenderSettings, Renderer};
-use celray::scene::{Instance, Scene};
+use celray::scene::{Instance, Light, Scene};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
@@ -168,6 +168,13 @@ fn pass_ms(stats: &FrameStats, name: &str) -> f64 {
         .map_or(f64::NAN, |(_, ms)| *ms)
 }
 
+/// The accumulate pass with its tile marks (the "outline_tiles" span, run
+/// only where the scene has outlines): the tables' "outline + accumulate".
+fn outline_accumulate_ms(stats: &FrameStats) -> f64 {
+    let tiles = pass_ms(stats, "outline_tiles");
+    pass_ms(stats, "accumulate") + if tiles.is_nan() { 0.0 } else { tiles }
+}
+
 /// `base`'s first instance repeated on a square grid of `count`, camera
 /// framing all of it.
 fn grid(base: &Scene, count: usize, spacing_factor: f32) -> Scene {
@@ -236,7 +243,7 @@ fn raster_suite(
         args.width,
         args.height
     );
-    md!(r, "| case | mode | frame ms (mean) | median | GPU raster | GPU trace | GPU accumulate | triangles |");
+    md!(r, "| case | mode | frame ms (mean) | median | GPU raster | GPU trace | GPU outline + accumulate | triangles |");
     md!(r, "|---|---|---|---|---|---|---|---|");
     let row =
         |name: &str, scene: Scene, mode: RenderMode, case: Option<&str>| -> anyhow::Result<()> {
@@ -262,7 +269,7 @@ fn raster_suite(
                 s.mean,
                 s.median,
                 pass_ms(&s, "raster"),
-                pass_ms(&s, "accumulate")
+                outline_accumulate_ms(&s)
             );
             Ok(())
         };
@@ -428,6 +435,92 @@ fn ray_row(
     Ok(())
 }
 
+/// Issue 9's question for a wavefront split: would the shadow rays cost
+/// less in a kernel of their own, over a compacted queue, than inside the
+/// fused trace kernel? The default scene in raytrace mode. The fused
+/// kernel's shadow share is its trace pass with shadows less the same pass
+/// with every light's `cast_shadows` off (a variant without the shadow
+/// code). The split's shadow stage is the same rays (from each primary hit,
+/// facing normal, towards each shadow-casting light it faces, the trace
+/// pass's epsilon), already compacted into one buffer, through the any-hit
+/// ray-batch kernel: a lower bound on that stage, before any queue is
+/// built or read back into the shading.
+fn shadow_split_row(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> {
+    let scene = Scene::builtin_default();
+    let fused = time_frames(gpu, scene.clone(), RenderMode::Raytrace, args)?;
+    let mut unshadowed = scene.clone();
+    for light in &mut unshadowed.lights {
+        match light {
+            Light::Directional { cast_shadows, .. } | Light::Point { cast_shadows, .. } => {
+                *cast_shadows = false
+            }
+        }
+    }
+    let no_shadows = time_frames(gpu, unshadowed, RenderMode::Raytrace, args)?;
+    let (renderer, _, rays) = ray_renderer(gpu, scene.clone(), args, AccelChoice::Software)?;
+    let buffers = renderer.scene_buffers();
+    let hits = RayBatch::new(gpu)?.trace(gpu, buffers, &rays)?;
+    let (lo, hi) = scene.bounds();
+    let epsilon = ((hi - lo).length() * 0.5).max(1e-3) * 1e-4;
+    let mut shadow = Vec::new();
+    for (ray, hit) in rays
+        .iter()
+        .zip(&hits)
+        .filter(|(_, h)| h.instance != u32::MAX)
+    {
+        let d = Vec3::from_slice(&ray.dir[..3]);
+        let p = Vec3::from_slice(&ray.origin[..3]) + d * hit.t;
+        let mut n = Vec3::from(hit.normal);
+        if n.dot(d) > 0.0 {
+            n = -n;
+        }
+        for light in &scene.lights {
+            let (to_light, distance) = match *light {
+                Light::Directional {
+                    direction,
+                    cast_shadows: true,
+                    ..
+                } => (-direction, 3.0e38),
+                Light::Point {
+                    position,
+                    cast_shadows: true,
+                    ..
+                } => ((position - p).normalize(), (position - p).length()),
+                _ => continue,
+            };
+            if n.dot(to_light) > 0.0 {
+                shadow.push(GpuRay {
+                    origin: (p + n * epsilon).extend(0.0).to_array(),
+                    dir: to_light.extend(distance).to_array(),
+                });
+            }
+        }
+    }
+    let batch = RayBatch::any_hit(gpu)?;
+    let batch_s = best_of(|| Ok(batch.trace_timed(gpu, buffers, &shadow)?.1))?;
+    let (with_ms, without_ms) = (pass_ms(&fused, "trace"), pass_ms(&no_shadows, "trace"));
+    r.case(
+        "shadow_split",
+        batch_s * 1e3,
+        Some(shadow.len() as f64 / batch_s / 1e6),
+        &[
+            ("trace", with_ms),
+            ("trace_without_shadows", without_ms),
+            ("shadow_batch", batch_s * 1e3),
+        ],
+    );
+    md!(
+        r,
+        "\nShadow rays of the default scene (raytrace): in the fused trace kernel {:.1} ms (trace {:.1} less {:.1} without shadows); {} of them compacted into one any-hit batch {:.1} ms.",
+        with_ms - without_ms,
+        with_ms,
+        without_ms,
+        shadow.len(),
+        batch_s * 1e3
+    );
+    Ok(())
+}
+
 fn rays_suite(
     gpu: &Gpu,
     args: &BenchArgs,
@@ -503,6 +596,7 @@ fn rays_suite(
         r,
         None,
     )?;
+    shadow_split_row(gpu, args, r)?;
 
     md!(
         r,
@@ -560,7 +654,7 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
         args.width,
         args.height
     );
-    md!(r, "| scene | effect | ms per sample (mean) | median | GPU raster | GPU trace | GPU accumulate |");
+    md!(r, "| scene | effect | ms per sample (mean) | median | GPU raster | GPU trace | GPU outline + accumulate |");
     md!(r, "|---|---|---|---|---|---|---|");
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
     let default = Scene::builtin_default();
@@ -619,7 +713,7 @@ fn effects_suite(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
             st.median,
             pass_ms(&st, "raster"),
             pass_ms(&st, "trace"),
-            pass_ms(&st, "accumulate")
+            outline_accumulate_ms(&st)
         );
     }
     temporal_rows(gpu, args, r)
@@ -635,7 +729,7 @@ fn temporal_rows(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
         args.width,
         args.height
     );
-    md!(r,"| temporal | ms per frame (mean) | GPU raster | GPU trace | GPU accumulate | GPU reproject |");
+    md!(r,"| temporal | ms per frame (mean) | GPU raster | GPU trace | GPU outline + accumulate | GPU reproject |");
     md!(r, "|---|---|---|---|---|---|");
     for temporal in [
         celray::render::Temporal::Off,
@@ -684,7 +778,7 @@ fn temporal_rows(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
             st.mean,
             pass_ms(&st, "raster"),
             pass_ms(&st, "trace"),
-            pass_ms(&st, "accumulate"),
+            outline_accumulate_ms(&st),
             pass_ms(&st, "reproject")
         );
     }

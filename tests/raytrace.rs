@@ -164,6 +164,79 @@ fn gpu_traversal_matches_cpu_reference_on_random_rays() {
     assert_hits_match_cpu(accel, &rays, &hits, "GPU");
 }
 
+/// The any-hit ray batch (the shadow-ray query) against the CPU reference:
+/// rays of [`random_rays`] that end at their aim point inside the instance
+/// cloud, so some are blocked before it and some are not. A ray must report
+/// a hit exactly when the CPU finds any hit in (0, t_max), and the reported
+/// hit may be any one, but never nearer than the closest (t at least the
+/// CPU's closest t, within 1e-4 relative) nor past t_max. Grazing rays (the
+/// CPU answer changes when the origin moves by 3e-3) may disagree: at most
+/// 10 of 10,000, as in the closest-hit check. Both answers must be common
+/// (over 2,000 rays each), or the check would prove little.
+#[test]
+fn gpu_any_hit_matches_cpu_occlusion() {
+    let gpu = gpu();
+    let renderer = celray::render::Renderer::new(
+        &gpu,
+        random_instances(false),
+        RenderSettings {
+            width: 8,
+            height: 8,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let buffers = renderer.scene_buffers();
+    let accel = &buffers.accel;
+    let rays: Vec<_> = random_rays(10_000)
+        .into_iter()
+        .enumerate()
+        .map(|(i, mut ray)| {
+            // t_max: 0.2 to 1.0 of the way to a point 10-35 units off.
+            ray.dir[3] = 10.0 + 25.0 * celray::sampling::uniform(i as u32, 3, 0);
+            ray
+        })
+        .collect();
+    let hits = RayBatch::any_hit(&gpu)
+        .unwrap()
+        .trace(&gpu, buffers, &rays)
+        .unwrap();
+    let (mut blocked, mut grazing) = (0, 0);
+    for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
+        let (o, d, t_max) = (
+            Vec3::from_slice(&ray.origin),
+            Vec3::from_slice(&ray.dir),
+            ray.dir[3],
+        );
+        let cpu = accel.closest_hit(o, d, 0.0, t_max);
+        assert!(!cpu.overflow && hit.overflow == 0, "ray {i}: overflow");
+        let gpu_blocked = hit.instance != u32::MAX;
+        if let (true, Some(closest)) = (gpu_blocked, cpu.hit) {
+            assert!(
+                hit.t >= closest.t * (1.0 - 1e-4) && hit.t < t_max,
+                "ray {i}: any hit at t = {} outside [{}, {t_max})",
+                hit.t,
+                closest.t
+            );
+        }
+        if gpu_blocked != cpu.hit.is_some() {
+            let wobble = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z]
+                .map(|e| accel.closest_hit(o + e * 3e-3, d, 0.0, t_max).hit.is_some());
+            assert!(
+                wobble.iter().any(|&w| w != cpu.hit.is_some()),
+                "ray {i}: GPU blocked {gpu_blocked}, CPU {cpu:?}, and the ray is not grazing"
+            );
+            grazing += 1;
+        }
+        blocked += usize::from(cpu.hit.is_some());
+    }
+    assert!(
+        blocked > 2000 && rays.len() - blocked > 2000,
+        "{blocked} of 10,000 rays blocked: the test would prove little"
+    );
+    assert!(grazing <= 10, "{grazing} grazing disagreements");
+}
+
 /// Hybrid (meshes rasterized, the rest traced) against raytrace (everything
 /// traced) on every shipped scene. Both sample the same pixel centres and
 /// shade with the same functions, so pixels agree within 2/255 per channel

@@ -589,3 +589,45 @@ fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
         );
     }
 }
+
+/// The outline marks have a timer span of their own ("outline_tiles"),
+/// beside the accumulation's, wherever some outline reaches another pixel
+/// (1 px or wider), and none where every outline is narrower: the default
+/// scene as shipped, then with every outline 0.5 px wide.
+#[test]
+fn the_outline_marks_are_timed_as_a_pass_of_their_own() {
+    let gpu = gpu();
+    let pass_names = |scene: celray::scene::Scene| {
+        let mut renderer = celray::render::Renderer::new(
+            &gpu,
+            scene,
+            RenderSettings {
+                width: 64,
+                height: 48,
+                mode: RenderMode::Raster,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            renderer.enable_pass_timing(&gpu),
+            "lavapipe has timestamp queries"
+        );
+        renderer.render_sample(&gpu).unwrap();
+        let times = renderer.pass_times(&gpu).unwrap();
+        for (name, ms) in &times {
+            assert!(ms.is_finite() && *ms >= 0.0, "{name}: {ms} ms");
+        }
+        times.iter().map(|(n, _)| *n).collect::<Vec<_>>()
+    };
+    let shipped = celray::scene::Scene::builtin_default();
+    assert_eq!(
+        pass_names(shipped.clone()),
+        ["raster", "outline_tiles", "accumulate"]
+    );
+    let mut thin = shipped;
+    for m in &mut thin.materials {
+        m.outline_width_px = m.outline_width_px.min(0.5);
+    }
+    assert_eq!(pass_names(thin), ["raster", "accumulate"]);
+}

@@ -94,7 +94,7 @@ impl FrameTimer {
             match *name {
                 "raster" => view.raster_ms += ms,
                 "trace" => view.trace_ms += ms,
-                "accumulate" | "reproject" => view.accumulate_ms += ms,
+                "outline_tiles" | "accumulate" | "reproject" => view.accumulate_ms += ms,
                 other => log::warn!("window timing: a renderer pass {other:?} not counted"),
             }
         }

@@ -3,7 +3,8 @@
 //! pixel's outline); group 1 is [`PASS_LAYOUT`] (frame uniforms, one
 //! G-buffer, the accumulator, the tile marks). When the scene has
 //! outlines, a first dispatch (`shaders/outline_tiles.wgsl`, group 1
-//! [`TILES_LAYOUT`]) marks the workgroup tiles where some pixel may take
+//! [`TILES_LAYOUT`], in a compute pass and timer span of its own,
+//! "outline_tiles") marks the workgroup tiles where some pixel may take
 //! an outline (an outlined object in reach that is not provably the smooth
 //! inside of one object), and the accumulate kernel searches only those.
 
@@ -197,15 +198,37 @@ impl AccumulatePass {
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
-    /// Both dispatches in one compute pass (one timer span): the tile
-    /// marks where the scene has outlines (`outlines`: some material's
-    /// outline is at least 1 px wide), then the accumulation.
+    /// The tile marks (`shaders/outline_tiles.wgsl`), in a compute pass of
+    /// their own (its own timer span, "outline_tiles"). Encode it before
+    /// [`AccumulatePass::encode`] where the scene has outlines (some
+    /// material's outline is at least 1 px wide).
+    pub fn encode_tiles(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        targets: &Targets,
+        traced: bool,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("outline tiles pass"),
+            timestamp_writes,
+        });
+        let (tiles_x, tiles_y) = tiles(targets);
+        pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
+        pass.set_pipeline(&self.tiles_pipeline);
+        let groups = self.tiles_groups.as_ref();
+        pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[usize::from(traced)]), &[]);
+        pass.dispatch_workgroups((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1, 1);
+    }
+
+    /// The accumulation, with the outline search where the scene has
+    /// outlines (it reads the marks [`AccumulatePass::encode_tiles`] wrote
+    /// this sample).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
         traced: bool,
-        outlines: bool,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -215,12 +238,6 @@ impl AccumulatePass {
         let (tiles_x, tiles_y) = tiles(targets);
         let slot = usize::from(traced);
         pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
-        if outlines {
-            pass.set_pipeline(&self.tiles_pipeline);
-            let groups = self.tiles_groups.as_ref();
-            pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[slot]), &[]);
-            pass.dispatch_workgroups((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1, 1);
-        }
         pass.set_pipeline(&self.pipeline);
         let groups = self.bind_groups.as_ref();
         pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[slot]), &[]);

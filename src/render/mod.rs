@@ -52,9 +52,16 @@ use targets::Targets;
 use trace::TracePass;
 
 /// The passes [`Renderer::pass_times`] reports, in this order, each when
-/// the last timed sample ran it (no trace in raster mode; reproject only
-/// after a moving frame).
-pub const PASS_NAMES: [&str; 4] = ["raster", "trace", "accumulate", "reproject"];
+/// the last timed sample ran it (no trace in raster mode; outline_tiles, the
+/// accumulate pass's marking dispatch, only where some outline is 1 px or
+/// wider; reproject only after a moving frame).
+pub const PASS_NAMES: [&str; 5] = [
+    "raster",
+    "trace",
+    "outline_tiles",
+    "accumulate",
+    "reproject",
+];
 
 /// GPU time of a sample's passes: one timer, one span per pass.
 struct SampleTimer {
@@ -63,19 +70,21 @@ struct SampleTimer {
     last_timed: bool,
     raster: Span,
     trace: Span,
+    outline_tiles: Span,
     accumulate: Span,
     reproject: Span,
 }
 
 impl SampleTimer {
     fn new(gpu: &Gpu) -> Option<SampleTimer> {
-        let (timer, [raster, trace, accumulate, reproject]) =
+        let (timer, [raster, trace, outline_tiles, accumulate, reproject]) =
             GpuTimer::new(gpu, "sample passes", PASS_NAMES)?;
         Some(SampleTimer {
             timer,
             last_timed: false,
             raster,
             trace,
+            outline_tiles,
             accumulate,
             reproject,
         })
@@ -587,11 +596,20 @@ impl Renderer {
                 timer.as_mut().and_then(|t| t.timer.compute_writes(t.trace)),
             );
         }
+        if outlines {
+            self.accumulate.encode_tiles(
+                &mut encoder,
+                &self.targets,
+                traced,
+                timer
+                    .as_mut()
+                    .and_then(|t| t.timer.compute_writes(t.outline_tiles)),
+            );
+        }
         self.accumulate.encode(
             &mut encoder,
             &self.targets,
             traced,
-            outlines,
             timer
                 .as_mut()
                 .and_then(|t| t.timer.compute_writes(t.accumulate)),

@@ -38,6 +38,17 @@ impl RayBatch {
     /// The variant that walks `traversal`'s structures ([`Traversal::Driver`]
     /// needs ray queries; trace with [`RayBatch::trace_driver_timed`]).
     pub fn with_traversal(gpu: &Gpu, traversal: Traversal) -> Result<RayBatch, GpuError> {
+        Self::build(gpu, traversal, false)
+    }
+
+    /// The software variant whose rays stop at the first hit they find, as
+    /// the trace pass's shadow rays do: a hit's `instance` says the ray is
+    /// blocked, its `t` is where (not necessarily the nearest hit).
+    pub fn any_hit(gpu: &Gpu) -> Result<RayBatch, GpuError> {
+        Self::build(gpu, Traversal::Software, true)
+    }
+
+    fn build(gpu: &Gpu, traversal: Traversal, any_hit: bool) -> Result<RayBatch, GpuError> {
         let module = shader::create_module_variant(gpu, "ray_batch.wgsl", traversal)?;
         gpu.scoped(|| {
             let scene_layout = scene_layout(gpu);
@@ -57,7 +68,10 @@ impl RayBatch {
             let driver =
                 (traversal == Traversal::Driver).then(|| driver_accel::bind_group_layout(gpu));
             let make = |csg: bool| {
-                let constants = [("CSG_ENABLED", f64::from(u8::from(csg)))];
+                let constants = [
+                    ("CSG_ENABLED", f64::from(u8::from(csg))),
+                    ("ANY_HIT", f64::from(u8::from(any_hit))),
+                ];
                 if let Some(driver_layout) = &driver {
                     return driver_accel::pipeline(
                         gpu,
