@@ -39,22 +39,53 @@
 override SHADOWS_ENABLED: bool = true;
 override REFLECTIONS_ENABLED: bool = true;
 override GLOSSY_ENABLED: bool = true;
+// The lights that cast shadows, one bit per light index (lights 0 to 31),
+// and whether any light from index 32 on does. Shadow rays are cast in a
+// loop over just these lights, so a light that casts none runs no
+// traversal code for it (Mesa 22.3 runs both sides of every branch, so a
+// shadow test under a run-time condition cost its code for every light).
+override SHADOW_LIGHTS: u32 = 0xffffffffu;
+override MANY_SHADOW_LIGHTS: bool = true;
 
 // The normal facing the ray: two-sided surfaces are shaded on both sides.
 fn facing_normal(h: TraceHit, d: vec3<f32>) -> vec3<f32> {
     return select(h.normal, -h.normal, dot(h.geometric, d) > 0.0);
 }
 
-// Ambient, rim and every light, with a shadow ray per shadow-casting light.
+// Whether the shadow ray from p (unit normal n) towards light `light`
+// finds something in the way; a surface facing away from a light casts no
+// ray (it is unlit by it anyway).
+fn shadowed(light: GpuLight, p: vec3<f32>, n: vec3<f32>) -> bool {
+    let ls = sample_light(light, p);
+    if light.radiance.w <= 0.0 || dot(n, ls.to_light) <= 0.0 {
+        return false;
+    }
+    let origin = p + n * frame.ray_epsilon;
+    return trace(origin, ls.to_light, 0.0, ls.distance, false, true).instance != NO_HIT;
+}
+
+// Ambient, rim and every light, with a shadow ray per shadow-casting light
+// the surface faces. The shadow rays go first (bit i of `blocked`: light i
+// is blocked), then the lights are summed in their order.
 fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f32> {
     var c = shade_ambient(m, n, v, frame.ambient.rgb);
+    var blocked = 0u;
+    if SHADOWS_ENABLED {
+        var rest = SHADOW_LIGHTS;
+        for (var k = 0u; k < countOneBits(SHADOW_LIGHTS); k++) {
+            let i = firstTrailingBit(rest);
+            rest &= rest - 1u;
+            if i < frame.light_count && shadowed(lights[i], p, n) {
+                blocked |= 1u << i;
+            }
+        }
+    }
     for (var i = 0u; i < frame.light_count; i++) {
         let light = lights[i];
         let ls = sample_light(light, p);
-        var visible = true;
-        if SHADOWS_ENABLED && light.radiance.w > 0.0 && dot(n, ls.to_light) > 0.0 {
-            let origin = p + n * frame.ray_epsilon;
-            visible = trace(origin, ls.to_light, 0.0, ls.distance, false, true).instance == NO_HIT;
+        var visible = i >= 32u || (blocked & (1u << i)) == 0u;
+        if SHADOWS_ENABLED && MANY_SHADOW_LIGHTS && i >= 32u {
+            visible = !shadowed(light, p, n);
         }
         if visible {
             c += shade_light(m, n, v, ls.to_light, ls.radiance);

@@ -348,6 +348,101 @@ fn shadow_lands_under_the_sphere() {
     }
 }
 
+/// Shadow rays go only to the lights that cast shadows, each to its own
+/// light, past the first 32 lights too (the trace kernel loops over a
+/// per-pipeline mask of lights 0-31 and tests lights from 32 on one by
+/// one). The floor and ball of the test above, Blinn-Phong floor with no
+/// specular (kd 0.5), ambient 0.2, and 34 directional lights: light 0
+/// straight down (0.3, casts none), light 1 straight down (0.3, casts),
+/// lights 2-32 off (intensity 0, cast none), light 33 from 45 degrees in
+/// x (0.2, casts, N.L = cos 45). A floor pixel is 0.5 (0.2 + 0.3 + 0.3 v1 +
+/// 0.2 cos45 v33), with v1 and v33 whether the ray from its floor point
+/// towards that light misses the ball (closed form), within 2/255, and the
+/// four shadow classes must match the closed form off their boundaries.
+#[test]
+fn shadows_come_from_each_casting_light_past_the_32nd() {
+    let gpu = gpu();
+    let off = "Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.0, cast_shadows: false),\n".repeat(31);
+    let ron = format!(
+        r#"(version: 1,
+        camera: (eye: (0.0, 5.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 160, height: 120),
+        ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+        lights: [
+            Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.3, cast_shadows: false),
+            Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.3),
+            {off}
+            Directional(direction: (-1.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.2),
+        ],
+        materials: {{ "floor": (base_color: (0.5, 0.5, 0.5), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong),
+                     "ball": (base_color: (0.9, 0.1, 0.1), model: BlinnPhong) }},
+        shapes: {{ "floor": Plane(Quad(half_size: (5.0, 5.0))), "ball": Sphere(radius: 0.5) }},
+        instances: [(shape: "floor", material: "floor"), (shape: "ball", material: "ball", transform: (translate: (0.0, 1.5, 0.0)))],
+    )"#
+    );
+    let scene = scene(&ron);
+    assert_eq!(scene.lights.len(), 34);
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let ball = Vec3::new(0.0, 1.5, 0.0);
+    let blocked = |p: Vec3, to_light: Vec3| {
+        celray::accel::intersect::sphere(p - ball, to_light, 0.5, 0.0, f32::MAX).is_some()
+    };
+    let slant = Vec3::new(1.0, 1.0, 0.0).normalize();
+    let value = |v1: bool, v33: bool| {
+        srgb8(
+            0.5 * (0.2
+                + 0.3
+                + 0.3 * f32::from(u8::from(v1))
+                + 0.2 * slant.y * f32::from(u8::from(v33))),
+        )
+    };
+    for mode in [RenderMode::Hybrid, RenderMode::Raytrace] {
+        let r = rendered(&gpu, scene.clone(), settings(&scene, mode));
+        let img = r.read_srgb8(&gpu).unwrap();
+        let cam = r.sample_camera(0);
+        let mut want = [Vec::new(), Vec::new()];
+        let mut got = [Vec::new(), Vec::new()];
+        for y in 0..h {
+            for x in 0..w {
+                let (o, d) = cam.pixel_ray((w, h), x, y);
+                let t = -o.y / d.y;
+                let p = o + d * t;
+                let sees_ball =
+                    celray::accel::intersect::sphere(o - ball, d, 0.5, 0.0, f32::MAX).is_some();
+                let on_floor = t > 0.0 && p.x.abs() < 5.0 && p.z.abs() < 5.0 && !sees_ball;
+                let (s1, s33) = (blocked(p, Vec3::Y), blocked(p, slant));
+                want[0].push(on_floor && s1);
+                want[1].push(on_floor && s33);
+                let g = rgb_at(&img, w, x, y)[0];
+                // The class (v1, v33) this pixel's value is within 2 of.
+                let class = [(true, true), (false, true), (true, false), (false, false)]
+                    .into_iter()
+                    .find(|&(v1, v33)| g.abs_diff(value(v1, v33)) <= 2);
+                if on_floor {
+                    assert!(
+                        class.is_some(),
+                        "{mode:?} ({x},{y}): {g} is no sum of the lights"
+                    );
+                }
+                let (v1, v33) = class.unwrap_or((true, true));
+                got[0].push(on_floor && !v1);
+                got[1].push(on_floor && !v33);
+            }
+        }
+        for (k, light) in [(0, 1), (1, 33)] {
+            let bad = mismatches_off_boundary(&got[k], &want[k], w, h);
+            assert!(
+                bad.is_empty(),
+                "{mode:?}: light {light}'s shadow differs from the closed form at {:?}",
+                &bad[..bad.len().min(5)]
+            );
+            assert!(
+                want[k].iter().filter(|&&s| s).count() > 100,
+                "light {light}'s shadow should be visible"
+            );
+        }
+    }
+}
+
 /// A red sphere over a mirror floor: a floor pixel shows red exactly where
 /// its ray, reflected about y = 0, hits the sphere (else the blue background).
 #[test]

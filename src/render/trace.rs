@@ -80,6 +80,10 @@ pub struct Variant {
     csg: bool,
     meshes: bool,
     shadows: bool,
+    /// `SHADOW_LIGHTS`: bit i for light i (< 32) that casts shadows.
+    shadow_lights: u32,
+    /// `MANY_SHADOW_LIGHTS`: some light from index 32 on casts shadows.
+    many_shadow_lights: bool,
     reflections: bool,
     glossy: bool,
     textures: bool,
@@ -98,14 +102,26 @@ impl Variant {
             .filter(|m| m.reflectivity > 0.0)
             .collect();
         let reflections = settings.max_bounces > 0 && !reflective.is_empty();
-        Variant {
-            csg: !buffers.accel.csg_ops.is_empty(),
-            meshes: !buffers.accel.triangles.is_empty(),
-            shadows: scene.lights.iter().any(|l| match l {
+        let casts: Vec<bool> = scene
+            .lights
+            .iter()
+            .map(|l| match l {
                 Light::Directional { cast_shadows, .. } | Light::Point { cast_shadows, .. } => {
                     *cast_shadows
                 }
-            }),
+            })
+            .collect();
+        Variant {
+            csg: !buffers.accel.csg_ops.is_empty(),
+            meshes: !buffers.accel.triangles.is_empty(),
+            shadows: casts.contains(&true),
+            shadow_lights: casts
+                .iter()
+                .take(32)
+                .enumerate()
+                .filter(|(_, &c)| c)
+                .fold(0, |bits, (i, _)| bits | 1 << i),
+            many_shadow_lights: casts.iter().skip(32).any(|&c| c),
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
             textures: buffers.uses_textures,
@@ -121,6 +137,8 @@ impl Variant {
             ("CSG_ENABLED", flag(self.csg)),
             ("MESHES_ENABLED", flag(self.meshes)),
             ("SHADOWS_ENABLED", flag(self.shadows)),
+            ("SHADOW_LIGHTS", f64::from(self.shadow_lights)),
+            ("MANY_SHADOW_LIGHTS", flag(self.many_shadow_lights)),
             ("REFLECTIONS_ENABLED", flag(self.reflections)),
             ("GLOSSY_ENABLED", flag(self.glossy)),
             ("TEXTURES_ENABLED", flag(self.textures)),
