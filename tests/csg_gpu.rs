@@ -7,7 +7,7 @@ mod common;
 
 use celray::gpu::twins::GpuRay;
 use celray::render::ray_batch::RayBatch;
-use celray::render::{RenderMode, RenderSettings, Renderer};
+use celray::render::{RenderMode, RenderSettings};
 use celray::sampling::uniform;
 use celray::scene::{tessellate, Csg, CsgLeaf, CsgNode, Instance, Scene, Shape};
 use common::*;
@@ -174,16 +174,7 @@ fn gpu_csg_matches_cpu_reference_on_random_trees_and_rays() {
         });
     }
     scene.validate().unwrap();
-    let renderer = Renderer::new(
-        &gpu,
-        scene,
-        RenderSettings {
-            width: 8,
-            height: 8,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let renderer = buffers_only(&gpu, scene);
     let buffers = renderer.scene_buffers();
     let accel = &buffers.accel;
     let rays: Vec<GpuRay> = (0..10_000u32)

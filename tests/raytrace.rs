@@ -141,17 +141,7 @@ fn instanced_ellipsoids_match_the_analytic_silhouette_and_normal() {
 #[test]
 fn gpu_traversal_matches_cpu_reference_on_random_rays() {
     let gpu = gpu();
-    let scene = random_instances(false);
-    let renderer = celray::render::Renderer::new(
-        &gpu,
-        scene,
-        RenderSettings {
-            width: 8,
-            height: 8,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let renderer = buffers_only(&gpu, random_instances(false));
     let buffers = renderer.scene_buffers();
     let accel = &buffers.accel;
 
@@ -176,16 +166,7 @@ fn gpu_traversal_matches_cpu_reference_on_random_rays() {
 #[test]
 fn gpu_any_hit_matches_cpu_occlusion() {
     let gpu = gpu();
-    let renderer = celray::render::Renderer::new(
-        &gpu,
-        random_instances(false),
-        RenderSettings {
-            width: 8,
-            height: 8,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let renderer = buffers_only(&gpu, random_instances(false));
     let buffers = renderer.scene_buffers();
     let accel = &buffers.accel;
     let rays: Vec<_> = random_rays(10_000)

@@ -209,16 +209,16 @@ impl AccumulatePass {
         traced: bool,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("outline tiles pass"),
-            timestamp_writes,
-        });
         let (tiles_x, tiles_y) = tiles(targets);
-        pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
-        pass.set_pipeline(&self.tiles_pipeline);
         let groups = self.tiles_groups.as_ref();
-        pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[usize::from(traced)]), &[]);
-        pass.dispatch_workgroups((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1, 1);
+        self.dispatch(
+            encoder,
+            "outline tiles pass",
+            &self.tiles_pipeline,
+            groups.map(|g| &g[usize::from(traced)]),
+            ((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1),
+            timestamp_writes,
+        );
     }
 
     /// The accumulation, with the outline search where the scene has
@@ -231,16 +231,35 @@ impl AccumulatePass {
         traced: bool,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
+        let groups = self.bind_groups.as_ref();
+        self.dispatch(
+            encoder,
+            "accumulate pass",
+            &self.pipeline,
+            groups.map(|g| &g[usize::from(traced)]),
+            tiles(targets),
+            timestamp_writes,
+        );
+    }
+
+    /// One compute pass of one dispatch, with the scene as group 0 and
+    /// `group` as group 1.
+    fn dispatch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        group: Option<&wgpu::BindGroup>,
+        (x, y): (u32, u32),
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("accumulate pass"),
+            label: Some(label),
             timestamp_writes,
         });
-        let (tiles_x, tiles_y) = tiles(targets);
-        let slot = usize::from(traced);
         pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
-        pass.set_pipeline(&self.pipeline);
-        let groups = self.bind_groups.as_ref();
-        pass.set_bind_group(PASS_GROUP, groups.map(|g| &g[slot]), &[]);
-        pass.dispatch_workgroups(tiles_x, tiles_y, 1);
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(PASS_GROUP, group, &[]);
+        pass.dispatch_workgroups(x, y, 1);
     }
 }

@@ -280,6 +280,21 @@ pub fn random_instances(with_csg: bool) -> Scene {
     .unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// A renderer of `scene` at 8 x 8 pixels: for tests that only need its
+/// scene buffers (ray batches against the CPU reference).
+pub fn buffers_only(gpu: &Gpu, scene: Scene) -> Renderer {
+    Renderer::new(
+        gpu,
+        scene,
+        RenderSettings {
+            width: 8,
+            height: 8,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
 /// `n` rays from random points of a 30-unit cube around the origin, each
 /// aimed at a random point of [`random_instances`]' 20-unit cloud so that
 /// most of them hit (unbounded: t_max 1e30).
