@@ -45,7 +45,7 @@ override GLOSSY_ENABLED: bool = true;
 // traversal code for it (Mesa 22.3 runs both sides of every branch, so a
 // shadow test under a run-time condition cost its code for every light).
 override SHADOW_LIGHTS: u32 = 0xffffffffu;
-override MANY_SHADOW_LIGHTS: bool = true;
+override SHADOW_LIGHTS_FROM_32: bool = true;
 
 // The normal facing the ray: two-sided surfaces are shaded on both sides.
 fn facing_normal(h: TraceHit, d: vec3<f32>) -> vec3<f32> {
@@ -84,7 +84,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f
         let light = lights[i];
         let ls = sample_light(light, p);
         var visible = i >= 32u || (blocked & (1u << i)) == 0u;
-        if SHADOWS_ENABLED && MANY_SHADOW_LIGHTS && i >= 32u {
+        if SHADOWS_ENABLED && SHADOW_LIGHTS_FROM_32 && i >= 32u {
             visible = !shadowed(light, p, n);
         }
         if visible {

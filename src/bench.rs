@@ -444,9 +444,15 @@ fn ray_row(
 /// facing normal, towards each shadow-casting light it faces, the trace
 /// pass's epsilon), already compacted into one buffer, through the any-hit
 /// ray-batch kernel: a lower bound on that stage, before any queue is
-/// built or read back into the shading.
+/// built or read back into the shading. Both walk celray's own BVH. (The
+/// batch's rays face the hit's shading normal where the trace pass uses
+/// the geometric one to flip it: they differ only at the cow's silhouette.)
 fn shadow_split_row(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> {
     let scene = Scene::builtin_default();
+    let args = &BenchArgs {
+        accel: AccelChoice::Software,
+        ..args.clone()
+    };
     let fused = time_frames(gpu, scene.clone(), RenderMode::Raytrace, args)?;
     let mut unshadowed = scene.clone();
     for light in &mut unshadowed.lights {

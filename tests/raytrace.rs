@@ -155,14 +155,17 @@ fn gpu_traversal_matches_cpu_reference_on_random_rays() {
 }
 
 /// The any-hit ray batch (the shadow-ray query) against the CPU reference:
-/// rays of [`random_rays`] that end at their aim point inside the instance
-/// cloud, so some are blocked before it and some are not. A ray must report
-/// a hit exactly when the CPU finds any hit in (0, t_max), and the reported
-/// hit may be any one, but never nearer than the closest (t at least the
-/// CPU's closest t, within 1e-4 relative) nor past t_max. Grazing rays (the
-/// CPU answer changes when the origin moves by 3e-3) may disagree: at most
-/// 10 of 10,000, as in the closest-hit check. Both answers must be common
-/// (over 2,000 rays each), or the check would prove little.
+/// the rays of [`random_rays`], cut at a t_max drawn uniformly in 10-35
+/// units (their aim points lie 0-43 units away), so some are blocked
+/// before t_max and some are not. A ray must report a hit exactly when the
+/// CPU finds any hit in (0, t_max), and the reported hit may be any one,
+/// but never nearer than the closest (t at least the CPU's closest t,
+/// within 1e-4 relative) nor past t_max. Grazing rays (the CPU answer
+/// changes when the origin moves by 3e-3) may disagree: at most 10 of
+/// 10,000, as in the closest-hit check. Both answers must be common (over
+/// 2,000 rays each), or the check would prove little. And the batch must
+/// stop early: fewer traversal steps in all than the closest-hit batch
+/// takes on the same rays (a closest-hit search would pass the rest).
 #[test]
 fn gpu_any_hit_matches_cpu_occlusion() {
     let gpu = gpu();
@@ -173,7 +176,6 @@ fn gpu_any_hit_matches_cpu_occlusion() {
         .into_iter()
         .enumerate()
         .map(|(i, mut ray)| {
-            // t_max: 0.2 to 1.0 of the way to a point 10-35 units off.
             ray.dir[3] = 10.0 + 25.0 * celray::sampling::uniform(i as u32, 3, 0);
             ray
         })
@@ -182,6 +184,18 @@ fn gpu_any_hit_matches_cpu_occlusion() {
         .unwrap()
         .trace(&gpu, buffers, &rays)
         .unwrap();
+    let closest = RayBatch::new(&gpu)
+        .unwrap()
+        .trace(&gpu, buffers, &rays)
+        .unwrap();
+    let steps =
+        |h: &[celray::gpu::twins::GpuHit]| h.iter().map(|h| u64::from(h.steps)).sum::<u64>();
+    assert!(
+        steps(&hits) < steps(&closest),
+        "any-hit took {} steps, closest-hit {}: the any-hit batch does not stop early",
+        steps(&hits),
+        steps(&closest)
+    );
     let (mut blocked, mut grazing) = (0, 0);
     for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
         let (o, d, t_max) = (
@@ -329,21 +343,89 @@ fn shadow_lands_under_the_sphere() {
     }
 }
 
+/// A live edit of a light's shadows (`Renderer::update_scene`, as the
+/// panel's checkbox does) takes effect, although the trace pipeline keeps
+/// testing the lights it tested before (`TracePass::variant_for_edit`). The
+/// scene of `shadow_lands_under_the_sphere` with its light casting no
+/// shadows, raytraced: the floor pixel nearest the point below the ball's
+/// centre is lit (0.5 x (0.2 + 0.8)), shadowed (0.5 x 0.2) once the light
+/// casts shadows (a pipeline with the shadow code), lit again once it
+/// stops (the same pipeline) and shadowed again, within 2/255 each time.
+#[test]
+fn toggling_a_lights_shadows_takes_effect() {
+    let gpu = gpu();
+    let mut scene = scene(
+        r#"(version: 1,
+        camera: (eye: (0.0, 5.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 80, height: 60),
+        ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+        lights: [Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.8, cast_shadows: false)],
+        materials: { "floor": (base_color: (0.5, 0.5, 0.5), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong),
+                     "ball": (base_color: (0.9, 0.1, 0.1), model: BlinnPhong) },
+        shapes: { "floor": Plane(Quad(half_size: (5.0, 5.0))), "ball": Sphere(radius: 0.5) },
+        instances: [(shape: "floor", material: "floor"), (shape: "ball", material: "ball", transform: (translate: (0.0, 1.5, 0.0)))],
+    )"#,
+    );
+    let mut r = rendered(&gpu, scene.clone(), settings(&scene, RenderMode::Raytrace));
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let cam = r.sample_camera(0);
+    let ball = Vec3::new(0.0, 1.5, 0.0);
+    // The floor pixel nearest the shadow's centre, its ray clear of the ball.
+    let (x, y) = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| {
+            let (o, d) = cam.pixel_ray((w, h), x, y);
+            celray::accel::intersect::sphere(o - ball, d, 0.5, 0.0, f32::MAX).is_none()
+        })
+        .min_by(|&(ax, ay), &(bx, by)| {
+            let floor = |x, y| {
+                let (o, d) = cam.pixel_ray((w, h), x, y);
+                (o + d * (-o.y / d.y)).length()
+            };
+            floor(ax, ay).total_cmp(&floor(bx, by))
+        })
+        .unwrap();
+    let (lit, shadowed) = (srgb8(0.5 * (0.2 + 0.8)), srgb8(0.5 * 0.2));
+    let check = |r: &celray::render::Renderer, want: u8, when: &str| {
+        let g = rgb_at(&r.read_srgb8(&gpu).unwrap(), w, x, y)[0];
+        assert!(
+            g.abs_diff(want) <= 2,
+            "{when}: ({x},{y}) is {g}, want {want}"
+        );
+    };
+    check(&r, lit, "as loaded");
+    for (casts, want, when) in [
+        (true, shadowed, "shadows on"),
+        (false, lit, "shadows off"),
+        (true, shadowed, "shadows on again"),
+    ] {
+        match &mut scene.lights[0] {
+            celray::scene::Light::Directional { cast_shadows, .. } => *cast_shadows = casts,
+            other => panic!("the scene's light is {other:?}"),
+        }
+        r.update_scene(&gpu, scene.clone()).unwrap();
+        r.render_sample(&gpu).unwrap();
+        check(&r, want, when);
+    }
+}
+
 /// Shadow rays go only to the lights that cast shadows, each to its own
 /// light, past the first 32 lights too (the trace kernel loops over a
 /// per-pipeline mask of lights 0-31 and tests lights from 32 on one by
 /// one). The floor and ball of the test above, Blinn-Phong floor with no
 /// specular (kd 0.5), ambient 0.2, and 34 directional lights: light 0
 /// straight down (0.3, casts none), light 1 straight down (0.3, casts),
-/// lights 2-32 off (intensity 0, cast none), light 33 from 45 degrees in
-/// x (0.2, casts, N.L = cos 45). A floor pixel is 0.5 (0.2 + 0.3 + 0.3 v1 +
-/// 0.2 cos45 v33), with v1 and v33 whether the ray from its floor point
-/// towards that light misses the ball (closed form), within 2/255, and the
-/// four shadow classes must match the closed form off their boundaries.
+/// lights 2-31 off (intensity 0, cast none), light 32 from 45 degrees in z
+/// (0.1, casts none, N.L = cos 45), light 33 from 45 degrees in x (0.2,
+/// casts). A floor pixel is 0.5 (0.2 + 0.3 + 0.1 cos45 + 0.3 v1 + 0.2 cos45
+/// v33), with v1 and v33 whether the ray from its floor point towards that
+/// light misses the ball (closed form), within 2/255, and the four shadow
+/// classes must match the closed form off their boundaries. Light 32's
+/// would-be shadow must cover over 100 floor pixels, so that a shadow it
+/// wrongly cast would show.
 #[test]
 fn shadows_come_from_each_casting_light_past_the_32nd() {
     let gpu = gpu();
-    let off = "Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.0, cast_shadows: false),\n".repeat(31);
+    let off = "Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.0, cast_shadows: false),\n".repeat(30);
     let ron = format!(
         r#"(version: 1,
         camera: (eye: (0.0, 5.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 160, height: 120),
@@ -352,6 +434,7 @@ fn shadows_come_from_each_casting_light_past_the_32nd() {
             Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.3, cast_shadows: false),
             Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.3),
             {off}
+            Directional(direction: (0.0, -1.0, 1.0), color: (1.0, 1.0, 1.0), intensity: 0.1, cast_shadows: false),
             Directional(direction: (-1.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.2),
         ],
         materials: {{ "floor": (base_color: (0.5, 0.5, 0.5), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong),
@@ -368,10 +451,12 @@ fn shadows_come_from_each_casting_light_past_the_32nd() {
         celray::accel::intersect::sphere(p - ball, to_light, 0.5, 0.0, f32::MAX).is_some()
     };
     let slant = Vec3::new(1.0, 1.0, 0.0).normalize();
+    let side = Vec3::new(0.0, 1.0, -1.0).normalize();
     let value = |v1: bool, v33: bool| {
         srgb8(
             0.5 * (0.2
                 + 0.3
+                + 0.1 * side.y
                 + 0.3 * f32::from(u8::from(v1))
                 + 0.2 * slant.y * f32::from(u8::from(v33))),
         )
@@ -382,6 +467,7 @@ fn shadows_come_from_each_casting_light_past_the_32nd() {
         let cam = r.sample_camera(0);
         let mut want = [Vec::new(), Vec::new()];
         let mut got = [Vec::new(), Vec::new()];
+        let mut under_light_32 = 0;
         for y in 0..h {
             for x in 0..w {
                 let (o, d) = cam.pixel_ray((w, h), x, y);
@@ -393,6 +479,7 @@ fn shadows_come_from_each_casting_light_past_the_32nd() {
                 let (s1, s33) = (blocked(p, Vec3::Y), blocked(p, slant));
                 want[0].push(on_floor && s1);
                 want[1].push(on_floor && s33);
+                under_light_32 += usize::from(on_floor && blocked(p, side));
                 let g = rgb_at(&img, w, x, y)[0];
                 // The class (v1, v33) this pixel's value is within 2 of.
                 let class = [(true, true), (false, true), (true, false), (false, false)]
@@ -409,6 +496,10 @@ fn shadows_come_from_each_casting_light_past_the_32nd() {
                 got[1].push(on_floor && !v33);
             }
         }
+        assert!(
+            under_light_32 > 100,
+            "light 32's would-be shadow covers {under_light_32} pixels"
+        );
         for (k, light) in [(0, 1), (1, 33)] {
             let bad = mismatches_off_boundary(&got[k], &want[k], w, h);
             assert!(

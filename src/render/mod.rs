@@ -389,7 +389,11 @@ impl Renderer {
         let shading = ShadingVariant::of(&self.scene.materials, &self.scene.lights);
         self.raster
             .prepare(gpu, &self.frame, &self.buffers, shading);
-        let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
+        let variant = self.trace.variant_for_edit(trace::Variant::of(
+            &self.scene,
+            &self.buffers,
+            &self.settings,
+        ));
         self.trace.select_variant(gpu, variant)?;
         self.reset();
         Ok(())

@@ -82,8 +82,11 @@ pub struct Variant {
     shadows: bool,
     /// `SHADOW_LIGHTS`: bit i for light i (< 32) that casts shadows.
     shadow_lights: u32,
-    /// `MANY_SHADOW_LIGHTS`: some light from index 32 on casts shadows.
-    many_shadow_lights: bool,
+    /// `SHADOW_LIGHTS_FROM_32`: some light from index 32 on casts shadows.
+    /// The kernel also checks each light's own flag, so a variant that tests
+    /// more lights than cast shadows draws the same picture (see
+    /// [`TracePass::variant_for_edit`]).
+    shadow_lights_from_32: bool,
     reflections: bool,
     glossy: bool,
     textures: bool,
@@ -121,7 +124,7 @@ impl Variant {
                 .enumerate()
                 .filter(|(_, &c)| c)
                 .fold(0, |bits, (i, _)| bits | 1 << i),
-            many_shadow_lights: casts.iter().skip(32).any(|&c| c),
+            shadow_lights_from_32: casts.iter().skip(32).any(|&c| c),
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
             textures: buffers.uses_textures,
@@ -138,7 +141,7 @@ impl Variant {
             ("MESHES_ENABLED", flag(self.meshes)),
             ("SHADOWS_ENABLED", flag(self.shadows)),
             ("SHADOW_LIGHTS", f64::from(self.shadow_lights)),
-            ("MANY_SHADOW_LIGHTS", flag(self.many_shadow_lights)),
+            ("SHADOW_LIGHTS_FROM_32", flag(self.shadow_lights_from_32)),
             ("REFLECTIONS_ENABLED", flag(self.reflections)),
             ("GLOSSY_ENABLED", flag(self.glossy)),
             ("TEXTURES_ENABLED", flag(self.textures)),
@@ -221,6 +224,21 @@ impl TracePass {
                 driver_group: None,
             }
         })
+    }
+
+    /// The variant to use when a live edit of materials or lights asks for
+    /// `want`: `want`, testing also the lights the current variant tests for
+    /// shadows. A light that stops casting shadows then needs no new
+    /// pipeline (building one takes seconds on the CPU driver), and one that
+    /// starts needs at most one per light.
+    pub fn variant_for_edit(&self, want: Variant) -> Variant {
+        let now = self.variant;
+        Variant {
+            shadows: want.shadows || now.shadows,
+            shadow_lights: want.shadow_lights | now.shadow_lights,
+            shadow_lights_from_32: want.shadow_lights_from_32 || now.shadow_lights_from_32,
+            ..want
+        }
     }
 
     /// Uses the pipeline for `variant` on the current path (driver or
