@@ -456,11 +456,7 @@ fn shadow_split_row(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<(
     let fused = time_frames(gpu, scene.clone(), RenderMode::Raytrace, args)?;
     let mut unshadowed = scene.clone();
     for light in &mut unshadowed.lights {
-        match light {
-            Light::Directional { cast_shadows, .. } | Light::Point { cast_shadows, .. } => {
-                *cast_shadows = false
-            }
-        }
+        *light.cast_shadows_mut() = false;
     }
     let no_shadows = time_frames(gpu, unshadowed, RenderMode::Raytrace, args)?;
     let (renderer, _, rays) = ray_renderer(gpu, scene.clone(), args, AccelChoice::Software)?;

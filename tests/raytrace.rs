@@ -398,10 +398,7 @@ fn toggling_a_lights_shadows_takes_effect() {
         (false, lit, "shadows off"),
         (true, shadowed, "shadows on again"),
     ] {
-        match &mut scene.lights[0] {
-            celray::scene::Light::Directional { cast_shadows, .. } => *cast_shadows = casts,
-            other => panic!("the scene's light is {other:?}"),
-        }
+        *scene.lights[0].cast_shadows_mut() = casts;
         r.update_scene(&gpu, scene.clone()).unwrap();
         r.render_sample(&gpu).unwrap();
         check(&r, want, when);

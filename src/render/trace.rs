@@ -79,8 +79,8 @@ struct DriverVariant {
 pub struct Variant {
     csg: bool,
     meshes: bool,
-    shadows: bool,
-    /// `SHADOW_LIGHTS`: bit i for light i (< 32) that casts shadows.
+    /// `SHADOW_LIGHTS`: bit i for light i (< 32) that casts shadows
+    /// (`SHADOWS_ENABLED` where some bit or `shadow_lights_from_32` is set).
     shadow_lights: u32,
     /// `SHADOW_LIGHTS_FROM_32`: some light from index 32 on casts shadows.
     /// The kernel also checks each light's own flag, so a variant that tests
@@ -105,26 +105,18 @@ impl Variant {
             .filter(|m| m.reflectivity > 0.0)
             .collect();
         let reflections = settings.max_bounces > 0 && !reflective.is_empty();
-        let casts: Vec<bool> = scene
-            .lights
-            .iter()
-            .map(|l| match l {
-                Light::Directional { cast_shadows, .. } | Light::Point { cast_shadows, .. } => {
-                    *cast_shadows
-                }
-            })
-            .collect();
+        let casts: Vec<bool> = scene.lights.iter().map(Light::casts_shadows).collect();
+        let mask_lights = u32::BITS as usize;
         Variant {
             csg: !buffers.accel.csg_ops.is_empty(),
             meshes: !buffers.accel.triangles.is_empty(),
-            shadows: casts.contains(&true),
             shadow_lights: casts
                 .iter()
-                .take(32)
+                .take(mask_lights)
                 .enumerate()
                 .filter(|(_, &c)| c)
                 .fold(0, |bits, (i, _)| bits | 1 << i),
-            shadow_lights_from_32: casts.iter().skip(32).any(|&c| c),
+            shadow_lights_from_32: casts.iter().skip(mask_lights).any(|&c| c),
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
             textures: buffers.uses_textures,
@@ -139,7 +131,10 @@ impl Variant {
         let mut constants = vec![
             ("CSG_ENABLED", flag(self.csg)),
             ("MESHES_ENABLED", flag(self.meshes)),
-            ("SHADOWS_ENABLED", flag(self.shadows)),
+            (
+                "SHADOWS_ENABLED",
+                flag(self.shadow_lights != 0 || self.shadow_lights_from_32),
+            ),
             ("SHADOW_LIGHTS", f64::from(self.shadow_lights)),
             ("SHADOW_LIGHTS_FROM_32", flag(self.shadow_lights_from_32)),
             ("REFLECTIONS_ENABLED", flag(self.reflections)),
@@ -234,7 +229,6 @@ impl TracePass {
     pub fn variant_for_edit(&self, want: Variant) -> Variant {
         let now = self.variant;
         Variant {
-            shadows: want.shadows || now.shadows,
             shadow_lights: want.shadow_lights | now.shadow_lights,
             shadow_lights_from_32: want.shadow_lights_from_32 || now.shadow_lights_from_32,
             ..want

@@ -241,6 +241,26 @@ pub enum Light {
     },
 }
 
+impl Light {
+    /// Whether the light casts shadows.
+    pub fn casts_shadows(&self) -> bool {
+        match self {
+            Light::Directional { cast_shadows, .. } | Light::Point { cast_shadows, .. } => {
+                *cast_shadows
+            }
+        }
+    }
+
+    /// Its `cast_shadows` flag, to edit.
+    pub fn cast_shadows_mut(&mut self) -> &mut bool {
+        match self {
+            Light::Directional { cast_shadows, .. } | Light::Point { cast_shadows, .. } => {
+                cast_shadows
+            }
+        }
+    }
+}
+
 /// One placed copy of a base shape.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Instance {
