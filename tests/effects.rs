@@ -602,3 +602,74 @@ fn regular_sampling_aliases_where_jittered_does_not() {
         "low-frequency error: regular {regular:.4}, jittered {jittered:.4}"
     );
 }
+
+/// Raster mode draws a sphere at the coarsest tessellation level whose
+/// silhouette stays within `MAX_SILHOUETTE_ERROR_PX` (half a pixel) of the
+/// true one. A unit sphere scaled to project to a circle of R px (centred,
+/// 10 units away; R = f rho / sqrt(d^2 - rho^2), f the focal length in
+/// pixels), black on white, no lights: the image's dark area is the
+/// coverage of the drawn silhouette, 64 jittered samples a pixel. Every
+/// level lies inside the true sphere, so the area is at most pi R^2, and
+/// its silhouette lies within half a pixel of the true circle, so it is at
+/// least pi R^2 less the perimeter times 0.5 px. The noise: about 2 pi R
+/// pixels cut by the edge, each with standard deviation <= 1/16 (64 strata,
+/// at most 8 cut, Bernoulli variance <= 1/4 each, weight 1/64), so about
+/// sqrt(2 pi R) / 16 px^2 in all, under 2 px^2 at R = 100: the tolerance is
+/// 8 px^2.
+///
+/// The level: a level with n segments reaches r (1 - cos(sqrt(2) pi / n))
+/// inside the sphere (the circumradius of an equatorial triangle, half the
+/// diagonal of a square 2 pi / n a side), 0.0383 r, 0.0096 r, 0.0024 r and
+/// 0.0006 r for 16, 32, 64 and 128, so R = 10 px takes 16 segments (0.38
+/// px), R = 40 px 32 (0.38 px; 16 would stray 1.5 px) and R = 100 px 64
+/// (0.24 px; 32 would stray 0.96 px).
+#[test]
+fn raster_spheres_are_drawn_at_the_coarsest_level_within_half_a_pixel() {
+    use celray::scene::SPHERE_LEVELS;
+    let gpu = gpu();
+    let (size, d) = (256u32, 10.0f64);
+    let f = f64::from(size) / 2.0 / 20.0f64.to_radians().tan();
+    for (r_px, segments) in [(10.0f64, 16u32), (40.0, 32), (100.0, 64)] {
+        let rho = r_px * d / (f * f + r_px * r_px).sqrt();
+        let ron = format!(
+            r#"(version: 1,
+            camera: (eye: (0.0, 0.0, {d}), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: {size}, height: {size}),
+            ambient: (0.0, 0.0, 0.0), background: (1.0, 1.0, 1.0),
+            lights: [],
+            materials: {{ "ink": (base_color: (0.0, 0.0, 0.0), specular_color: (0.0, 0.0, 0.0), model: BlinnPhong, outline_width_px: 0.0) }},
+            shapes: {{ "ball": Sphere(radius: 1.0) }},
+            instances: [(shape: "ball", material: "ink", transform: (rotate_deg: (20.0, 30.0, 0.0), scale: ({rho}, {rho}, {rho})))],
+        )"#
+        );
+        let scene = scene(&ron);
+        let settings = RenderSettings {
+            mode: RenderMode::Raster,
+            spp: 64,
+            pattern: PixelPattern::Jittered,
+            ..pixel_centre_settings(&scene)
+        };
+        let r = rendered(&gpu, scene, settings);
+        let drawn = r.raster_levels(0);
+        assert_eq!(drawn.len(), 1, "one draw");
+        assert_eq!(
+            SPHERE_LEVELS[drawn[0]], segments,
+            "R = {r_px} px: drawn at {} segments",
+            SPHERE_LEVELS[drawn[0]]
+        );
+        let linear = r.read_linear(&gpu).unwrap();
+        let covered: f64 = (0..size)
+            .flat_map(|y| (0..size).map(move |x| (x, y)))
+            .map(|(x, y)| 1.0 - lum(&linear, size, x, y))
+            .sum();
+        let (disk, perimeter) = (
+            std::f64::consts::PI * r_px * r_px,
+            2.0 * std::f64::consts::PI * r_px,
+        );
+        let bound = perimeter * f64::from(celray::scene::MAX_SILHOUETTE_ERROR_PX);
+        assert!(
+            covered <= disk + 8.0 && covered >= disk - bound - 8.0,
+            "R = {r_px} px: covers {covered:.1} px^2; the true disk {disk:.1}, at least {:.1}",
+            disk - bound
+        );
+    }
+}

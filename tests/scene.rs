@@ -4,8 +4,9 @@
 use std::path::{Path, PathBuf};
 
 use celray::scene::{
-    parse_shading_model, tessellate, Light, Mesh, PlaneKind, Scene, SceneError, ShadingModel,
-    Shape, Toon, MAX_TOON_BANDS, ROUND_SEGMENTS, SPHERE_RINGS, SPHERE_SEGMENTS,
+    parse_shading_model, sphere_inset, tessellate, tessellate_sphere, Light, Mesh, PlaneKind,
+    Scene, SceneError, ShadingModel, Shape, Toon, MAX_TOON_BANDS, ROUND_SEGMENTS, SPHERE_LEVELS,
+    SPHERE_RINGS, SPHERE_SEGMENTS,
 };
 use glam::{Vec2, Vec3, Vec4};
 
@@ -381,6 +382,54 @@ fn tessellated_sphere_lies_on_the_sphere() {
     for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
         assert!((p.length() - radius).abs() < 1e-5, "{p} off the sphere");
         assert!((*p / radius - *n).length() < 1e-5, "normal {n} at {p}");
+    }
+}
+
+/// Every level of a sphere: n x n/2 with its vertices on the sphere, and
+/// every point of every triangle (sampled on a barycentric grid of 8 steps
+/// a side) between the sphere of radius r - inset and the true one, with
+/// the inset reached (a sample within 1% of it: the deepest point of the
+/// deepest triangle is its circumcentre, which the grid passes near). The
+/// inset is about r (1 - cos(sqrt(2) pi / n)), the circumradius of an
+/// equatorial triangle, half the diagonal of a square 2 pi / n a side
+/// (within 5%: the square is not quite flat nor square).
+#[test]
+fn sphere_levels_lie_within_their_inset_of_the_sphere() {
+    let radius = 2.5f32;
+    assert_eq!(SPHERE_LEVELS[0], SPHERE_SEGMENTS);
+    for n in SPHERE_LEVELS {
+        let mesh = tessellate_sphere(radius, n);
+        assert_well_formed(&mesh);
+        assert_eq!(mesh.triangle_count(), (2 * n * (n / 2 - 1)) as usize, "{n}");
+        for p in &mesh.positions {
+            assert!(
+                (p.length() - radius).abs() < 1e-5,
+                "{n}: {p} off the sphere"
+            );
+        }
+        let inset = sphere_inset(&mesh, radius);
+        let expected =
+            radius * (1.0 - (std::f32::consts::SQRT_2 * std::f32::consts::PI / n as f32).cos());
+        assert!(
+            (inset / expected - 1.0).abs() < 0.05,
+            "{n} segments: inset {inset}, about {expected} expected"
+        );
+        let mut deepest = radius;
+        for t in mesh.indices.chunks_exact(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+            for i in 0..=8 {
+                for j in 0..=8 - i {
+                    let (u, v) = (i as f32 / 8.0, j as f32 / 8.0);
+                    let d = (a + (b - a) * u + (c - a) * v).length();
+                    assert!(d >= radius - inset - 1e-5 && d <= radius + 1e-5, "{n}: {d}");
+                    deepest = deepest.min(d);
+                }
+            }
+        }
+        assert!(
+            radius - deepest > 0.99 * inset,
+            "{n}: deepest {deepest}, inset {inset}"
+        );
     }
 }
 

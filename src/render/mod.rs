@@ -499,6 +499,24 @@ impl Renderer {
             .min(crate::gpu::twins::MAX_OUTLINE_RADIUS as f32)
     }
 
+    /// Sample `k`'s level of detail for each of the scene's draws
+    /// ([`SceneBuffers::draws`]) in the raster pass: an index into the
+    /// draw's levels, 0 the finest ([`raster::draw_levels`]). Empty outside
+    /// raster mode, where the pass draws only meshes, which have one level.
+    pub fn raster_levels(&self, k: u32) -> Vec<usize> {
+        if self.settings.mode != RenderMode::Raster {
+            return Vec::new();
+        }
+        let smp = self.sample_schedule().sample(k);
+        let view = raster::LodView::new(
+            &self.scene.camera.at(smp.time),
+            &self.camera_for(&smp),
+            (self.settings.width, self.settings.height),
+        );
+        let time = self.buffers.has_motion.then_some(smp.time);
+        raster::draw_levels(&self.buffers, &self.scene, &view, time)
+    }
+
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
@@ -548,6 +566,7 @@ impl Renderer {
             self.samples
         };
         let uniforms = self.frame_uniforms(k);
+        let levels = self.raster_levels(k);
         if let Some((pass, prev)) = &moving {
             pass.write_uniforms(gpu, &self.reproject_uniforms(prev));
         }
@@ -586,7 +605,7 @@ impl Renderer {
             &self.targets,
             &self.buffers,
             background,
-            mode,
+            &raster::RasterDraws { mode, levels },
             timer.as_mut().and_then(|t| t.timer.render_writes(t.raster)),
         );
         if let (true, Some(time), Some(driver)) = (traced, motion_time, self.driver.as_mut()) {

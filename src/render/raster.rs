@@ -5,15 +5,19 @@
 
 use std::collections::HashMap;
 
+use glam::{Mat3, Vec3};
+
 use crate::gpu::twins::{Vertex, FAR_DEPTH};
 use crate::gpu::{shader, Gpu, GpuError};
+use crate::render::camera::SampleCamera;
 use crate::render::scene_buffers::{
-    scene_layout, Cull, SceneBuffers, ShadingVariant, PASS_GROUP, SCENE_GROUP,
+    scene_layout, Cull, Draw, MeshLevel, SceneBuffers, ShadingVariant, PASS_GROUP, SCENE_GROUP,
 };
 use crate::render::settings::RenderMode;
 use crate::render::targets::{
     Targets, ALBEDO_FORMAT, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT,
 };
+use crate::scene::{Camera, Scene, Shape, MAX_SILHOUETTE_ERROR_PX};
 
 pub struct RasterPass {
     /// One pipeline per [`Cull`] mode (back, front, none) for each
@@ -102,13 +106,14 @@ impl RasterPass {
         }));
     }
 
+    /// Clears the G-buffer to `background` and draws what `draws` selects.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
         scene: &SceneBuffers,
         background: [f32; 3],
-        mode: RenderMode,
+        draws: &RasterDraws,
         timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'_>>,
     ) {
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
@@ -173,17 +178,10 @@ impl RasterPass {
         pass.set_bind_group(PASS_GROUP, self.bind_group.as_ref(), &[]);
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
-        // Raster mode draws everything; hybrid only meshes (the trace pass
-        // finds analytic shapes exactly); raytrace nothing (only the clears).
-        let drawn = |d: &&crate::render::scene_buffers::Draw| match mode {
-            RenderMode::Raster => true,
-            RenderMode::Hybrid => d.is_mesh,
-            RenderMode::Raytrace => false,
-        };
         let Some(pipelines) = self.pipelines.get(&self.variant) else {
             return;
         };
-        for d in scene.draws.iter().filter(drawn) {
+        for (d, level) in draws.selected(scene) {
             pass.set_pipeline(
                 &pipelines[match d.cull {
                     Cull::Back => 0,
@@ -192,11 +190,44 @@ impl RasterPass {
                 }],
             );
             pass.draw_indexed(
-                d.first_index..d.first_index + d.index_count,
-                d.base_vertex,
+                level.first_index..level.first_index + level.index_count,
+                level.base_vertex,
                 d.instances.clone(),
             );
         }
+    }
+}
+
+/// What the raster pass draws of a scene for one sample.
+#[derive(Debug, Clone, Default)]
+pub struct RasterDraws {
+    /// Raster mode draws everything; hybrid only meshes (the trace pass
+    /// finds analytic shapes exactly); raytrace nothing (only the clears).
+    pub mode: RenderMode,
+    /// The level of detail of each of the scene's draws ([`draw_levels`]);
+    /// missing entries draw the finest.
+    pub levels: Vec<usize>,
+}
+
+impl RasterDraws {
+    /// The draws to make, each with its level's triangles.
+    fn selected<'a>(
+        &'a self,
+        scene: &'a SceneBuffers,
+    ) -> impl Iterator<Item = (&'a Draw, MeshLevel)> + 'a {
+        scene
+            .draws
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| match self.mode {
+                RenderMode::Raster => true,
+                RenderMode::Hybrid => d.is_mesh,
+                RenderMode::Raytrace => false,
+            })
+            .map(|(i, d)| {
+                let level = self.levels.get(i).copied().unwrap_or(0);
+                (d, d.levels[level.min(d.levels.len() - 1)])
+            })
     }
 }
 
@@ -276,4 +307,114 @@ fn raster_pipelines(
         pipeline(Some(wgpu::Face::Front)),
         pipeline(None),
     ]
+}
+
+/// What choosing a level of detail needs of one sample's camera.
+#[derive(Debug, Clone, Copy)]
+pub struct LodView {
+    eye: Vec3,
+    forward: Vec3,
+    right: Vec3,
+    up: Vec3,
+    /// Pixels per unit of tan(angle off the view axis): (height / 2) /
+    /// tan(fov_y / 2).
+    px_per_tan: f32,
+    /// The tangents (x, y) of the frustum's corner, widened by the lens
+    /// shear of depth of field: nothing outside is seen.
+    corner_tan: (f32, f32),
+}
+
+impl LodView {
+    /// The view of `sample`, taken by `camera` (at the sample's shutter
+    /// time) on an image of `size` pixels.
+    pub fn new(camera: &Camera, sample: &SampleCamera, size: (u32, u32)) -> LodView {
+        let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = size.0 as f32 / size.1.max(1) as f32;
+        let shear = camera.aperture_radius / camera.resolved_focus_distance();
+        let right = sample.forward.cross(camera.up).normalize_or_zero();
+        LodView {
+            eye: sample.eye,
+            forward: sample.forward,
+            right,
+            up: right.cross(sample.forward),
+            px_per_tan: size.1 as f32 * 0.5 / tan_half,
+            corner_tan: (tan_half * aspect + shear, tan_half + shear),
+        }
+    }
+
+    /// The most a short world-space offset on a sphere (centre `centre`,
+    /// radius `rho`) can move on screen, in pixels per world unit, or None
+    /// where the sphere reaches the eye's plane. At view-space point
+    /// (x, y, z) the projection's Jacobian is (px_per_tan / z) [[1, 0,
+    /// -x/z], [0, 1, -y/z]], whose largest singular value is (px_per_tan /
+    /// z) sqrt(1 + (x/z)^2 + (y/z)^2); over the sphere, z >= z_min and
+    /// |x/z| <= (|x_c| + rho) / z_min (and the frustum's corner bounds both
+    /// tangents, nothing beyond being seen).
+    fn px_per_unit(&self, centre: Vec3, rho: f32) -> Option<f32> {
+        let c = centre - self.eye;
+        let z_min = c.dot(self.forward) - rho;
+        if z_min <= 0.0 {
+            return None;
+        }
+        let tx = ((c.dot(self.right).abs() + rho) / z_min).min(self.corner_tan.0);
+        let ty = ((c.dot(self.up).abs() + rho) / z_min).min(self.corner_tan.1);
+        Some(self.px_per_tan / z_min * (1.0 + tx * tx + ty * ty).sqrt())
+    }
+}
+
+/// The level of detail of each of `scene.draws` for one sample (an index
+/// into its `levels`, 0 the finest): the coarsest level at which no
+/// instance of the draw has its silhouette stray from the true surface by
+/// more than [`MAX_SILHOUETTE_ERROR_PX`].
+///
+/// A sphere's level reaching `inset` inside it (`inset * s` in world
+/// units, s the largest stretch of the instance's matrix) has its
+/// silhouette within that distance of the true one, which
+/// [`LodView::px_per_unit`] turns into pixels. A sphere reaching the eye's
+/// plane is drawn at the finest level. `time` is the sample's shutter time
+/// when instances move.
+pub fn draw_levels(
+    buffers: &SceneBuffers,
+    scene: &Scene,
+    view: &LodView,
+    time: Option<f32>,
+) -> Vec<usize> {
+    buffers
+        .draws
+        .iter()
+        .map(|d| {
+            let radius = match scene.shapes[d.shape] {
+                Shape::Sphere { radius } if d.levels.len() > 1 => radius,
+                _ => return 0,
+            };
+            let mut level = d.levels.len() - 1;
+            for gpu_index in d.instances.clone() {
+                let inst = &scene.instances[buffers.instance_order[gpu_index as usize]];
+                let m = time.map_or(inst.world_from_object, |t| inst.world_from_object_at(t));
+                let stretch = max_stretch(Mat3::from_mat4(m));
+                let Some(px_per_unit) = view.px_per_unit(m.w_axis.truncate(), radius * stretch)
+                else {
+                    return 0;
+                };
+                while level > 0
+                    && d.levels[level].inset * stretch * px_per_unit > MAX_SILHOUETTE_ERROR_PX
+                {
+                    level -= 1;
+                }
+                if level == 0 {
+                    break;
+                }
+            }
+            level
+        })
+        .collect()
+}
+
+/// An upper bound on how much `m` stretches any vector: the square root of
+/// the largest row sum of |m^T m| (Gershgorin), which is exact for a
+/// rotation after an axis-aligned scale.
+fn max_stretch(m: Mat3) -> f32 {
+    let g = m.transpose() * m;
+    let row = |i: usize| g.x_axis[i].abs() + g.y_axis[i].abs() + g.z_axis[i].abs();
+    row(0).max(row(1)).max(row(2)).sqrt()
 }

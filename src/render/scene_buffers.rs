@@ -21,7 +21,8 @@ use crate::gpu::twins::{
 use crate::gpu::{Gpu, GpuError};
 use crate::render::textures::{scene_uses_textures, SceneTextures};
 use crate::scene::{
-    tessellate, Light, Material, Pattern, Scene, ShadingModel, Shape, TextureFilter,
+    sphere_inset, tessellate, tessellate_sphere, Light, Material, Mesh, Pattern, Scene,
+    ShadingModel, Shape, TextureFilter, SPHERE_LEVELS,
 };
 
 /// The scene's group in every pass that reads it.
@@ -73,17 +74,31 @@ pub enum Cull {
     None,
 }
 
-/// One instanced draw: a base shape's index range and its instances.
+/// One instanced draw: a base shape's triangles (at each of its levels of
+/// detail) and its instances.
 #[derive(Debug, Clone)]
 pub struct Draw {
     pub shape: usize,
     /// A triangle mesh from a file (hybrid mode rasterizes only these).
     pub is_mesh: bool,
     pub cull: Cull,
+    /// The shape's triangles, finest first: one level, or a sphere's
+    /// [`SPHERE_LEVELS`] (the raster pass picks one per frame,
+    /// `render::raster::draw_levels`).
+    pub levels: Vec<MeshLevel>,
+    pub instances: std::ops::Range<u32>,
+}
+
+/// One tessellation of a base shape in the scene's vertex and index
+/// buffers.
+#[derive(Debug, Clone, Copy)]
+pub struct MeshLevel {
     pub first_index: u32,
     pub index_count: u32,
     pub base_vertex: i32,
-    pub instances: std::ops::Range<u32>,
+    /// How far inside the true surface the triangles reach, in object
+    /// units ([`sphere_inset`]); 0 where they are the surface.
+    pub inset: f32,
 }
 
 pub struct SceneBuffers {
@@ -382,14 +397,40 @@ impl SceneBuffers {
             if matches!(shape, Shape::Csg(_)) {
                 continue; // CSG is ray-traced only: raster mode draws nothing for it
             }
-            let tessellated;
-            let mesh = match shape {
-                Shape::Mesh(mesh) => mesh,
-                other => {
-                    tessellated = tessellate(other);
-                    &tessellated
-                }
+            // Spheres are uploaded at every level of detail, finest first;
+            // other shapes have one level, with no inset (meshes are their
+            // own truth; boxes and quads are exact).
+            let meshes: Vec<(Mesh, f32)> = match shape {
+                Shape::Mesh(mesh) => vec![(mesh.clone(), 0.0)],
+                Shape::Sphere { radius } => SPHERE_LEVELS
+                    .iter()
+                    .map(|&segments| {
+                        let mesh = tessellate_sphere(*radius, segments);
+                        let inset = sphere_inset(&mesh, *radius);
+                        (mesh, inset)
+                    })
+                    .collect(),
+                other => vec![(tessellate(other), 0.0)],
             };
+            let mut levels = Vec::with_capacity(meshes.len());
+            for (mesh, inset) in &meshes {
+                levels.push(MeshLevel {
+                    first_index: indices.len() as u32,
+                    index_count: mesh.indices.len() as u32,
+                    base_vertex: vertices.len() as i32,
+                    inset: *inset,
+                });
+                let layers = textures.mesh_layers(mesh);
+                vertices.extend(mesh.positions.iter().zip(&mesh.normals).enumerate().map(
+                    |(i, (p, n))| Vertex {
+                        position: p.to_array(),
+                        normal: n.to_array(),
+                        uv: mesh.uvs.get(i).copied().unwrap_or_default().to_array(),
+                        map: SceneTextures::vertex_layer(&layers, mesh, i),
+                    },
+                ));
+                indices.extend_from_slice(&mesh.indices);
+            }
             let mut group_start = first;
             while group_start < end {
                 let cull = cull_of(order[group_start as usize]);
@@ -402,24 +443,12 @@ impl SceneBuffers {
                     shape: shape_id,
                     is_mesh: matches!(shape, Shape::Mesh(_)),
                     cull,
-                    first_index: indices.len() as u32,
-                    index_count: mesh.indices.len() as u32,
-                    base_vertex: vertices.len() as i32,
+                    levels: levels.clone(),
                     instances: group_start..group_end,
                 });
                 group_start = group_end;
             }
-            triangle_count += (mesh.indices.len() / 3) as u64 * u64::from(end - first);
-            let layers = textures.mesh_layers(mesh);
-            vertices.extend(mesh.positions.iter().zip(&mesh.normals).enumerate().map(
-                |(i, (p, n))| Vertex {
-                    position: p.to_array(),
-                    normal: n.to_array(),
-                    uv: mesh.uvs.get(i).copied().unwrap_or_default().to_array(),
-                    map: SceneTextures::vertex_layer(&layers, mesh, i),
-                },
-            ));
-            indices.extend_from_slice(&mesh.indices);
+            triangle_count += (meshes[0].0.indices.len() / 3) as u64 * u64::from(end - first);
         }
         check_limit(
             "vertex buffer (bytes)",

@@ -139,7 +139,10 @@ pub use material::{
 pub use mesh::{smooth_normals, Mesh, NO_MESH_TEXTURE};
 pub use overrides::OVERRIDE_KEYS;
 pub use shape::{PlaneKind, Shape};
-pub use tessellate::{tessellate, ROUND_SEGMENTS, SPHERE_RINGS, SPHERE_SEGMENTS};
+pub use tessellate::{
+    sphere_inset, tessellate, tessellate_sphere, MAX_SILHOUETTE_ERROR_PX, ROUND_SEGMENTS,
+    SPHERE_LEVELS, SPHERE_RINGS, SPHERE_SEGMENTS,
+};
 pub use texture::{
     srgb_to_linear, BaseColorTexture, MapSampler, Pattern, Texture, TextureFilter, Wrap,
     MAX_TEXTURES, MAX_TEXTURE_SIZE,

@@ -6,13 +6,29 @@ use glam::{Vec2, Vec3};
 
 use super::{Mesh, PlaneKind, Shape};
 
-/// Segments around the axis of a tessellated sphere. A silhouette of n
-/// segments on a circle of R pixels strays from the true circle by at most
-/// R (1 - cos(pi / n)); for a sphere filling a 1080p frame (R = 540) and
-/// n = 128 that is 0.16 px, below a quarter pixel: smooth at 1080p.
+/// Segments around the axis of a tessellated sphere (its finest level, see
+/// [`SPHERE_LEVELS`]). The mesh reaches at most [`sphere_inset`] inside the
+/// sphere, 0.06% of the radius at 128 segments (the circumradius of an
+/// equatorial triangle, half the diagonal of a square of 2 pi / 128
+/// radians a side), so its silhouette strays from the true one by at most
+/// half a pixel while the sphere's radius on screen is under 800 px.
 pub const SPHERE_SEGMENTS: u32 = 128;
 /// Rings from pole to pole of a tessellated sphere (same angular step).
 pub const SPHERE_RINGS: u32 = 64;
+/// The segment counts of a sphere's tessellation levels, finest first
+/// (each has half as many rings). Raster mode draws a sphere at the
+/// coarsest level whose silhouette stays within
+/// [`MAX_SILHOUETTE_ERROR_PX`] of the true one (`render::raster::draw_levels`):
+/// a sphere of 100 px radius on screen takes the 64-segment level, a
+/// quarter of the finest level's triangles, one of 10 px the 16-segment
+/// level, a sixty-fourth.
+pub const SPHERE_LEVELS: [u32; 4] = [SPHERE_SEGMENTS, 64, 32, 16];
+/// How far, in pixels, a tessellated sphere's silhouette may stray from the
+/// true sphere's when raster mode picks its level. Half a pixel: a pixel
+/// centre that the true silhouette misses by more than half a pixel is on
+/// the same side of the drawn one, so one sample per pixel classifies every
+/// pixel but those on the silhouette the same.
+pub const MAX_SILHOUETTE_ERROR_PX: f32 = 0.5;
 /// Segments around the axis of tessellated cylinders, cones and disks (the
 /// same bound as [`SPHERE_SEGMENTS`]).
 pub const ROUND_SEGMENTS: u32 = 128;
@@ -32,7 +48,7 @@ pub const ROUND_SEGMENTS: u32 = 128;
 /// (CSG is ray-traced only, never rasterized).
 pub fn tessellate(shape: &Shape) -> Mesh {
     let mut b = match shape {
-        Shape::Sphere { radius } => sphere(*radius),
+        Shape::Sphere { radius } => sphere(*radius, SPHERE_SEGMENTS),
         Shape::Box { half_extents } => cuboid(*half_extents),
         Shape::Cylinder { radius, height } => cylinder(*radius, *height),
         Shape::Cone { radius, height } => cone(*radius, *height),
@@ -47,6 +63,35 @@ pub fn tessellate(shape: &Shape) -> Mesh {
     };
     b.mesh.source = format!("tessellated {}", shape.kind_name());
     b.mesh
+}
+
+/// A sphere of `radius` with `segments` (even, at least 4) around its axis
+/// and `segments / 2` rings: one of the [`SPHERE_LEVELS`].
+/// `tessellate(&Shape::Sphere { radius })` is this at [`SPHERE_SEGMENTS`].
+pub fn tessellate_sphere(radius: f32, segments: u32) -> Mesh {
+    let mut b = sphere(radius, segments.max(4) & !1);
+    b.mesh.source = format!("tessellated sphere, {segments} segments");
+    b.mesh
+}
+
+/// How far inside its sphere (of `radius`, centred on the origin) a
+/// tessellated sphere reaches: `radius` less the smallest distance from the
+/// centre to the plane of any of its triangles. Every point of the mesh lies
+/// between the sphere of `radius - inset` and the true one, so the mesh's
+/// silhouette strays from the true one by at most the inset as seen from
+/// the camera.
+pub fn sphere_inset(mesh: &Mesh, radius: f32) -> f32 {
+    let p = |i: u32| mesh.positions[i as usize].as_dvec3();
+    let closest = mesh
+        .indices
+        .chunks_exact(3)
+        .map(|t| {
+            let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            n.dot(a).abs()
+        })
+        .fold(f64::from(radius), f64::min);
+    (f64::from(radius) - closest).max(0.0) as f32
 }
 
 /// Collects vertices and triangles.
@@ -97,8 +142,8 @@ fn unit_circle(i: u32, n: u32) -> (f32, f32) {
 
 /// UV sphere with one vertex at each pole. Angle theta runs around +y from
 /// +x towards +z; rings run from the north (+y) to the south pole.
-fn sphere(radius: f32) -> Builder {
-    let (segments, rings) = (SPHERE_SEGMENTS, SPHERE_RINGS);
+fn sphere(radius: f32, segments: u32) -> Builder {
+    let rings = segments / 2;
     let mut b = Builder::default();
     let north = b.vertex(Vec3::new(0.0, radius, 0.0), Vec3::Y);
     for r in 1..rings {
