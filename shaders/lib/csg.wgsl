@@ -142,7 +142,7 @@ fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f
         }
         current = NO_HIT;
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
-            let h = intersect_triangle(o, d, triangles[k], -CSG_FAR, CSG_FAR);
+            let h = intersect_triangle(o, d, k, -CSG_FAR, CSG_FAR);
             if !h.hit {
                 continue;
             }

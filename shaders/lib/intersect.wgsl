@@ -182,34 +182,58 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
     return no_hit();
 }
 
-// Moller-Trumbore; the shading normal interpolates the vertex normals by
-// the barycentric coordinates, as the rasterizer does.
-fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, tri: GpuTriangle, t_min: f32, t_max: f32) -> ObjectHit {
-    let p0 = tri.p0.xyz;
-    let e1 = tri.p1.xyz - p0;
-    let e2 = tri.p2.xyz - p0;
+// Moller-Trumbore on triangle k of `triangles`: (t, u, v, 1) with u, v
+// the barycentric coordinates of the hit, or w = 0 where the ray misses
+// it within (t_min, t_max). It reads only the corners: a traversal tests
+// many triangles and needs the normals of its closest hit alone
+// (triangle_hit), and on the CPU driver every field read is a gather.
+fn triangle_tuv(o: vec3<f32>, d: vec3<f32>, k: u32, t_min: f32, t_max: f32) -> vec4<f32> {
+    let p0 = triangles[k].p0.xyz;
+    let e1 = triangles[k].p1.xyz - p0;
+    let e2 = triangles[k].p2.xyz - p0;
     let pv = cross(d, e2);
     let det = dot(e1, pv);
     if det == 0.0 {
-        return no_hit();
+        return vec4<f32>(0.0);
     }
     let inv = 1.0 / det;
     let tv = o - p0;
     let u = dot(tv, pv) * inv;
     if u < 0.0 || u > 1.0 {
-        return no_hit();
+        return vec4<f32>(0.0);
     }
     let qv = cross(tv, e1);
     let v = dot(d, qv) * inv;
     if v < 0.0 || u + v > 1.0 {
-        return no_hit();
+        return vec4<f32>(0.0);
     }
     let t = dot(e2, qv) * inv;
     if !in_range(t, t_min, t_max) {
+        return vec4<f32>(0.0);
+    }
+    return vec4<f32>(t, u, v, 1.0);
+}
+
+// The hit on triangle k at (t, u, v) from triangle_tuv: the shading normal
+// interpolates the vertex normals by the barycentric coordinates, as the
+// rasterizer does; the geometric normal follows the winding.
+fn triangle_hit(k: u32, tuv: vec3<f32>) -> ObjectHit {
+    let p0 = triangles[k].p0.xyz;
+    let e1 = triangles[k].p1.xyz - p0;
+    let e2 = triangles[k].p2.xyz - p0;
+    let u = tuv.y;
+    let v = tuv.z;
+    let n = triangles[k].n0.xyz * (1.0 - u - v) + triangles[k].n1.xyz * u + triangles[k].n2.xyz * v;
+    return ObjectHit(true, tuv.x, n, cross(e1, e2));
+}
+
+// Triangle k's hit, or no_hit().
+fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, k: u32, t_min: f32, t_max: f32) -> ObjectHit {
+    let h = triangle_tuv(o, d, k, t_min, t_max);
+    if h.w == 0.0 {
         return no_hit();
     }
-    let n = tri.n0.xyz * (1.0 - u - v) + tri.n1.xyz * u + tri.n2.xyz * v;
-    return ObjectHit(true, t, n, cross(e1, e2));
+    return triangle_hit(k, h.xyz);
 }
 
 // The analytic shape kinds the scene holds (bit 1 << kind), at the top

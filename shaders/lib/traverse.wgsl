@@ -92,7 +92,8 @@ fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32
 // private array costs in proportion to its size at every declaration).
 fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
     let inv_d = 1.0 / d;
-    var best = no_hit();
+    var best = NO_HIT;
+    var best_tuv = vec3<f32>(0.0);
     var t_best = t_max;
     var sp = base;
     var current = select(NO_HIT, root, box_entry(root, o, inv_d, t_min, t_max) < 3.0e38);
@@ -113,16 +114,20 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
-            let h = intersect_triangle(o, d, triangles[k], t_min, t_best);
-            if h.hit {
-                t_best = h.t;
-                best = h;
-                mesh_triangle = k;
+            let h = triangle_tuv(o, d, k, t_min, t_best);
+            if h.w != 0.0 {
+                t_best = h.x;
+                best = k;
+                best_tuv = h.xyz;
             }
         }
         current = NO_HIT;
     }
-    return best;
+    if best == NO_HIT {
+        return no_hit();
+    }
+    mesh_triangle = best;
+    return triangle_hit(best, best_tuv);
 }
 
 fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
