@@ -32,7 +32,9 @@ const CREASE_COS: f32 = 0.5;
 var<workgroup> tile_id: array<u32, TILE_TEXELS>;
 var<workgroup> tile_normal_depth: array<vec4<f32>, TILE_TEXELS>;
 var<workgroup> tile_material: array<u32, TILE_TEXELS>;
-var<workgroup> tile_width: array<f32, TILE_TEXELS>;
+// The square of the texel's outline width, or -1 on the background: the
+// search's first test reads this one array.
+var<workgroup> tile_width2: array<f32, TILE_TEXELS>;
 fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
     let size = vec2<i32>(frame.size_px);
     for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
@@ -40,19 +42,20 @@ fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
         var id = 0u;
         var nd = vec4<f32>(0.0);
         var material = 0u;
-        var width = 0.0;
+        var width2 = -1.0;
         if all(q >= vec2<i32>(0)) && all(q < size) {
             id = textureLoad(id_tex, q, 0).x;
             if id != 0u {
                 nd = textureLoad(normal_depth_tex, q, 0);
                 material = instances[id - 1u].material;
-                width = materials[material].outline_width_px;
+                let width = materials[material].outline_width_px;
+                width2 = width * width;
             }
         }
         tile_id[k] = id;
         tile_normal_depth[k] = nd;
         tile_material[k] = material;
-        tile_width[k] = width;
+        tile_width2[k] = width2;
     }
 }
 
@@ -67,14 +70,26 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
     let nd_p = tile_normal_depth[k_p];
     var best_depth = 3.0e38;
     var best_material = 0xffffffffu;
+    // No texel farther than the widest outline can reach p. Below the cap,
+    // frame.max_outline_px is that width, so each row of the search spans
+    // only the disk's chord (its half-width floored, with a margin over the
+    // rounding: a texel it keeps but the disk does not is still refused by
+    // the width test below). At the cap a wider material may reach the
+    // square's corners, so the rows span the whole square.
+    let reach2 = frame.max_outline_px * frame.max_outline_px;
+    let capped = frame.max_outline_px >= f32(MAX_OUTLINE_RADIUS);
     for (var dy = -r; dy <= r; dy++) {
-        for (var dx = -r; dx <= r; dx++) {
+        let room = reach2 - f32(dy * dy);
+        var rx = r;
+        if !capped {
+            rx = i32(floor(min(sqrt(max(room, 0.0)) + 1.0e-3, f32(r))));
+        }
+        for (var dx = -rx; dx <= rx; dx++) {
             let k = (c.y + dy) * span + c.x + dx;
-            let id_q = tile_id[k];
-            let w = tile_width[k];
-            if id_q == 0u || f32(dx * dx + dy * dy) > w * w {
+            if f32(dx * dx + dy * dy) > tile_width2[k] {
                 continue;
             }
+            let id_q = tile_id[k];
             let nd_q = tile_normal_depth[k];
             var edge = id_p == 0u;
             if !edge {
