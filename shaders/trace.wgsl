@@ -220,7 +220,17 @@ fn cone_axes(d: vec3<f32>, n: vec3<f32>, width: f32) -> array<vec3<f32>, 2> {
 }
 
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    // The CPU driver runs 8 consecutive invocations as one program, and a
+    // branch or loop costs all 8 whenever one of them needs it. Each 8 is
+    // laid out as a 4 x 2 block of pixels rather than a row of 8, so their
+    // rays stay closer together and agree more often (TRACE_WORKGROUP / 4
+    // blocks a row; docs/performance.md has the figures).
+    let group = li / 8u;
+    let lane = li % 8u;
+    let blocks_per_row = TRACE_WORKGROUP / 4u;
+    let local = vec2<u32>(4u * (group % blocks_per_row) + lane % 4u, 2u * (group / blocks_per_row) + lane / 4u);
+    let gid = wg.xy * TRACE_WORKGROUP + local;
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
         return;
     }

@@ -182,6 +182,8 @@ pub const DEPTH_JUMP: f32 = 0.05;
 pub const MAX_OUTLINE_RADIUS: u32 = 8;
 /// Workgroup edge of the trace kernel (8 x 8 invocations).
 pub const TRACE_WORKGROUP: u32 = 8;
+// The trace kernel lays its invocations out in 4 x 2 blocks (trace.wgsl).
+const _: () = assert!(TRACE_WORKGROUP % 4 == 0);
 /// Workgroup size of the ray-batch kernel used by tests.
 pub const RAY_BATCH_WORKGROUP: u32 = 64;
 
