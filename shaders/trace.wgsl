@@ -25,6 +25,9 @@
 @group(1) @binding(6) var out_id: texture_storage_2d<r32uint, write>;
 // The raster pass's base colour (hybrid: rasterized hits).
 @group(1) @binding(7) var raster_albedo: texture_2d<f32>;
+// Per light, which shadow rays can meet anything (src/accel/shadow_cull.rs).
+@group(1) @binding(8) var<storage, read> shadow_cull: array<GpuShadowCull>;
+@group(1) @binding(9) var<storage, read> shadow_cells: array<u32>;
 
 // TRACE_WORKGROUP, MAX_INVOCATION_STEPS (loop iterations one pixel may
 // spend on traversal, all rays together: well under lavapipe's silent cut
@@ -52,15 +55,53 @@ fn facing_normal(h: TraceHit, d: vec3<f32>) -> vec3<f32> {
     return select(h.normal, -h.normal, dot(h.geometric, d) > 0.0);
 }
 
-// Whether the shadow ray from p (unit normal n) towards light `light`
-// finds something in the way; a surface facing away from a light casts no
-// ray (it is unlit by it anyway).
-fn shadowed(light: GpuLight, p: vec3<f32>, n: vec3<f32>) -> bool {
+// Whether the shadow ray from o along l (towards light i) may meet
+// anything; false only where it provably meets nothing, so a ray skipped
+// for it would have found no hit (src/accel/shadow_cull.rs, whose
+// may_be_blocked is the CPU twin). A static plane is behind the ray where
+// the ray's object-space start height and direction, as the intersection
+// test computes them, have the same sign (beyond rounding); every other
+// occluder's box lands on a grid cell across the light.
+fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>) -> bool {
+    let c = shadow_cull[i];
+    if c.enabled == 0u {
+        return true;
+    }
+    for (var k = 0u; k < c.plane_count; k++) {
+        let r = c.planes[k];
+        let side = dot(r.xyz, o) + r.w;
+        let along = dot(r.xyz, l);
+        let side_err = PLANE_MARGIN * (dot(abs(r.xyz), abs(o)) + abs(r.w));
+        let along_err = PLANE_MARGIN * dot(abs(r.xyz), abs(l));
+        let behind = (side > side_err && along > along_err) || (side < -side_err && along < -along_err);
+        if !behind {
+            return true;
+        }
+    }
+    let g = vec2<f32>(dot(c.u.xyz, o) - c.u.w, dot(c.v.xyz, o) - c.v.w) * c.cells_per_unit;
+    let dims = vec2<f32>(c.dims);
+    if any(g < vec2<f32>(0.0)) || any(g >= dims) {
+        return false;
+    }
+    if any(g != g) {
+        return true;
+    }
+    let bit = u32(g.y) * c.dims.x + u32(g.x);
+    return (shadow_cells[c.first_word + bit / 32u] & (1u << (bit % 32u))) != 0u;
+}
+
+// Whether the shadow ray from p (unit normal n) towards light i finds
+// something in the way; a surface facing away from a light casts no ray
+// (it is unlit by it anyway), nor does one that nothing can block.
+fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>) -> bool {
     let ls = sample_light(light, p);
     if light.radiance.w <= 0.0 || dot(n, ls.to_light) <= 0.0 {
         return false;
     }
     let origin = p + n * frame.ray_epsilon;
+    if !shadow_may_be_blocked(i, origin, ls.to_light) {
+        return false;
+    }
     return trace(origin, ls.to_light, 0.0, ls.distance, false, true).instance != NO_HIT;
 }
 
@@ -75,7 +116,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f
         for (var k = 0u; k < countOneBits(SHADOW_LIGHTS); k++) {
             let i = firstTrailingBit(rest);
             rest &= rest - 1u;
-            if i < frame.light_count && shadowed(lights[i], p, n) {
+            if i < frame.light_count && shadowed(i, lights[i], p, n) {
                 blocked |= 1u << i;
             }
         }
@@ -85,7 +126,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f
         let ls = sample_light(light, p);
         var visible = i >= 32u || (blocked & (1u << i)) == 0u;
         if SHADOWS_ENABLED && SHADOW_LIGHTS_FROM_32 && i >= 32u {
-            visible = !shadowed(light, p, n);
+            visible = !shadowed(i, light, p, n);
         }
         if visible {
             c += shade_light(m, n, v, ls.to_light, ls.radiance);

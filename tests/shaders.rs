@@ -173,6 +173,20 @@ fn twins_match_wgsl_layouts() {
             _pad
         }
     );
+    check_twin!(
+        trace,
+        GpuShadowCull {
+            u,
+            v,
+            planes,
+            cells_per_unit,
+            dims,
+            first_word,
+            plane_count,
+            enabled,
+            _pad
+        }
+    );
     check_twin!(trace, GpuRay { origin, dir });
     check_twin!(
         trace,
@@ -428,6 +442,7 @@ fn generated_limits_match_rust() {
         ("MAX_TOON_BANDS", celray::scene::MAX_TOON_BANDS),
         ("MAX_OUTLINE_RADIUS", MAX_OUTLINE_RADIUS),
         ("TRACE_WORKGROUP", TRACE_WORKGROUP),
+        ("MAX_CULL_PLANES", MAX_CULL_PLANES),
         ("RAY_BATCH_WORKGROUP", RAY_BATCH_WORKGROUP),
         ("ACCUMULATE_WORKGROUP", ACCUMULATE_WORKGROUP),
         ("REPROJECT_WORKGROUP", REPROJECT_WORKGROUP),

@@ -119,6 +119,24 @@ struct ResolveUniforms {
     exposure: f32,
 }
 
+// Which shadow rays of one light can meet something at all (twin of
+// GpuShadowCull, src/accel/layout.rs; built by src/accel/shadow_cull.rs):
+// the axes (u, v) across a directional light with the grid's lower corner
+// in w, static planes tested exactly (row y of their object_from_world),
+// and a grid of dims cells, one bit each in shadow_cells from first_word.
+struct GpuShadowCull {
+    u: vec4<f32>,
+    v: vec4<f32>,
+    planes: array<vec4<f32>, MAX_CULL_PLANES>,
+    cells_per_unit: vec2<f32>,
+    dims: vec2<u32>,
+    first_word: u32,
+    plane_count: u32,
+    // 0: every shadow ray of this light is cast.
+    enabled: u32,
+    _pad: u32,
+}
+
 // A node of a bounding volume hierarchy: a leaf (count > 0) holds items
 // left_or_first .. left_or_first + count; an inner node's children are
 // nodes left_or_first and left_or_first + 1.

@@ -22,6 +22,42 @@ pub const TRAVERSAL_STACK: u32 = 64;
 /// overflow: well under lavapipe's silent cut at ~65,535 per invocation.
 pub const MAX_TRAVERSAL_STEPS: u32 = 12000;
 
+/// Cells along each side of a light's shadow-cull grid, at most
+/// ([`GpuShadowCull`]); one bit per cell, so `SHADOW_CULL_CELLS^2 / 32`
+/// words of `shadow_cells` per light.
+pub const SHADOW_CULL_CELLS: u32 = 64;
+pub const SHADOW_CULL_WORDS: u32 = SHADOW_CULL_CELLS * SHADOW_CULL_CELLS / 32;
+/// Planes per light whose shadow rays are tested against them exactly.
+pub const MAX_CULL_PLANES: u32 = 4;
+
+/// Which shadow rays of one light can meet something at all
+/// ([`crate::accel::shadow_cull`]): the trace kernel casts a ray only where
+/// this says it may be blocked, and the skipped rays are exactly those that
+/// would have found nothing.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GpuShadowCull {
+    /// Unit axes across the light's direction (xyz); w: the grid's lower
+    /// corner along the axis.
+    pub u: [f32; 4],
+    pub v: [f32; 4],
+    /// Static quads and disks: row y of their `object_from_world`, so
+    /// `dot(row.xyz, p) + row.w` is a point's object-space height (the
+    /// plane's side), as the intersection test computes it.
+    pub planes: [[f32; 4]; MAX_CULL_PLANES as usize],
+    /// Grid cells per world unit along u and v.
+    pub cells_per_unit: [f32; 2],
+    /// Cells along u and v (0 x 0: no occluder in the grid).
+    pub dims: [u32; 2],
+    /// The grid's first word in `shadow_cells` (bit y * dims.x + x).
+    pub first_word: u32,
+    pub plane_count: u32,
+    /// 0: every shadow ray of this light is cast (a point light, or a
+    /// light that casts no shadows).
+    pub enabled: u32,
+    pub _pad: u32,
+}
+
 /// A node of a bounding volume hierarchy. A leaf has `count > 0` items
 /// starting at `left_or_first`; an inner node's children are nodes
 /// `left_or_first` and `left_or_first + 1`.

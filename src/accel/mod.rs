@@ -11,6 +11,7 @@ pub mod bvh;
 pub mod csg;
 pub mod intersect;
 pub mod layout;
+pub mod shadow_cull;
 
 use std::ops::ControlFlow;
 
@@ -51,6 +52,10 @@ pub struct SceneAccel {
     pub tlas_items: Vec<u32>,
     /// Per GPU instance: (world_from_object, object_from_world, shape).
     pub instances: Vec<(Mat4, Mat4, u32)>,
+    /// Per GPU instance: its world box over the whole shutter (the top
+    /// level's leaf boxes), and whether it moves.
+    pub world_bounds: Vec<Aabb>,
+    pub moving: Vec<bool>,
     /// Postfix programs of the CSG shapes (each ends with CSG_OP_END).
     pub csg_ops: Vec<GpuCsgOp>,
     pub csg_leaves: Vec<GpuCsgLeaf>,
@@ -224,6 +229,10 @@ impl SceneAccel {
                 }
             })
             .collect();
+        let moving = instance_order
+            .iter()
+            .map(|&i| scene.instances[i].world_from_object_end.is_some())
+            .collect();
         let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
         // One stack serves both levels, holding at most one entry per level
         // of the top-level path plus one per level of a mesh's path.
@@ -269,6 +278,8 @@ impl SceneAccel {
             triangles,
             tlas_items: tlas.items,
             instances,
+            world_bounds,
+            moving,
             csg_ops,
             triangle_sources,
             csg_leaves,

@@ -44,6 +44,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
             (twins::ACCUMULATE_WORKGROUP + 2 * twins::MAX_OUTLINE_RADIUS).pow(2),
         ),
         ("TRACE_WORKGROUP", twins::TRACE_WORKGROUP),
+        ("MAX_CULL_PLANES", twins::MAX_CULL_PLANES),
         ("RAY_BATCH_WORKGROUP", twins::RAY_BATCH_WORKGROUP),
         ("ACCUMULATE_WORKGROUP", twins::ACCUMULATE_WORKGROUP),
         ("OUTLINE_TILES_WORKGROUP", twins::OUTLINE_TILES_WORKGROUP),
@@ -54,7 +55,9 @@ pub fn u32_limits() -> Vec<U32Limit> {
 /// Every `f32` constant of [`limits_header`], by its WGSL name.
 pub fn f32_limits() -> Vec<F32Limit> {
     use crate::accel::csg::{CSG_EPS_ABS, CSG_EPS_REL, CSG_FAR};
+    use crate::accel::shadow_cull::PLANE_MARGIN;
     vec![
+        ("PLANE_MARGIN", PLANE_MARGIN),
         ("CSG_FAR", CSG_FAR),
         ("CSG_EPS_ABS", CSG_EPS_ABS),
         ("CSG_EPS_REL", CSG_EPS_REL),

@@ -382,6 +382,7 @@ impl Renderer {
                 .collect();
             gpu.queue
                 .write_buffer(&self.buffers.lights, 0, bytemuck::cast_slice(&lights));
+            self.buffers.write_shadow_cull(gpu, &scene.lights);
         }
         self.scene = scene;
         // Edited materials or lights may need other code in the trace kernel

@@ -12,7 +12,7 @@
 use glam::Mat4;
 use wgpu::util::DeviceExt;
 
-use crate::accel::SceneAccel;
+use crate::accel::{shadow_cull, SceneAccel};
 use crate::gpu::layout::{buffer_entries, map_array_entry, read_only_storage_entry, sampler_entry};
 use crate::gpu::twins::{
     GpuInstance, GpuLight, GpuMaterial, Vertex, MAX_TOON_BANDS, NO_TEXTURE, SHADING_BLINN_PHONG,
@@ -132,6 +132,11 @@ pub struct SceneBuffers {
     pub triangle_maps: wgpu::Buffer,
     /// Base-colour images (a 1x1 white layer when there are none).
     pub textures: SceneTextures,
+    /// Which shadow rays can meet anything, per light
+    /// ([`crate::accel::shadow_cull`]; the trace pass's bindings 8 and 9),
+    /// rewritten when lights are edited.
+    pub shadow_cull: wgpu::Buffer,
+    pub shadow_cells: wgpu::Buffer,
     /// Whether any material has an image or a pattern, or any mesh its
     /// own map: passes compile
     /// their texture code in only then (override `TEXTURES_ENABLED`).
@@ -343,6 +348,16 @@ impl SceneBuffers {
             gpu.queue
                 .write_buffer(&self.instances, 0, bytemuck::cast_slice(&data));
         }
+    }
+
+    /// Rewrites the shadow cull data for edited `lights` (as many as at
+    /// upload).
+    pub fn write_shadow_cull(&self, gpu: &Gpu, lights: &[Light]) {
+        let cull = shadow_cull::build(&self.accel, lights);
+        gpu.queue
+            .write_buffer(&self.shadow_cull, 0, bytemuck::cast_slice(&cull.lights));
+        gpu.queue
+            .write_buffer(&self.shadow_cells, 0, bytemuck::cast_slice(&cull.cells));
     }
 
     /// Uploads `scene`. Sizes over the adapter's limits are refused with a
@@ -560,6 +575,9 @@ impl SceneBuffers {
             let csg_ops = storage_buffer(gpu, "scene CSG programs", &csg_ops);
             let csg_leaves = storage_buffer(gpu, "scene CSG leaves", &csg_leaves);
             let triangle_maps = storage_buffer(gpu, "scene triangle maps", &triangle_maps);
+            let cull = shadow_cull::build(&accel, &scene.lights);
+            let shadow_cull = storage_buffer(gpu, "shadow cull", &cull.lights);
+            let shadow_cells = storage_buffer(gpu, "shadow cull cells", &cull.cells);
             let mut entries = buffer_entries(&[
                 &instances,
                 &materials,
@@ -592,6 +610,8 @@ impl SceneBuffers {
                 csg_ops,
                 csg_leaves,
                 triangle_maps,
+                shadow_cull,
+                shadow_cells,
                 accel,
                 vertices: gpu
                     .device

@@ -15,7 +15,8 @@ use std::collections::HashMap;
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{
-    read_write_storage_entry, storage_texture_entry, texture_entry, uniform_entry,
+    read_only_storage_entry, read_write_storage_entry, storage_texture_entry, texture_entry,
+    uniform_entry,
 };
 use crate::gpu::shader::Traversal;
 use crate::gpu::twins::{SHAPE_MESH, TRACE_WORKGROUP};
@@ -32,7 +33,7 @@ const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterab
 
 /// Group 1 of the trace pass, binding by binding as `shaders/trace.wgsl`
 /// declares it.
-pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 8] = [
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     read_write_storage_entry(1),                   // stats
     texture_entry(2, FLOAT),                       // raster_normal_depth
@@ -41,6 +42,8 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 8] = [
     storage_texture_entry(5, NORMAL_DEPTH_FORMAT), // out_normal_depth
     storage_texture_entry(6, ID_FORMAT),           // out_id
     texture_entry(7, FLOAT),                       // raster_albedo
+    read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // shadow_cull
+    read_only_storage_entry(9, wgpu::ShaderStages::COMPUTE), // shadow_cells
 ];
 
 pub struct TracePass {
@@ -321,6 +324,16 @@ impl TracePass {
                     resource: wgpu::BindingResource::TextureView(v),
                 }),
         );
+        entries.extend([
+            wgpu::BindGroupEntry {
+                binding: 8,
+                resource: scene.shadow_cull.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 9,
+                resource: scene.shadow_cells.as_entire_binding(),
+            },
+        ]);
         let target_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace pass bind group"),
             layout: &self.target_layout,
