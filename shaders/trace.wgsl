@@ -60,9 +60,11 @@ fn facing_normal(h: TraceHit, d: vec3<f32>) -> vec3<f32> {
 // for it would have found no hit (src/accel/shadow_cull.rs, whose
 // may_be_blocked is the CPU twin). A static plane is behind the ray where
 // the ray's object-space start height and direction, as the intersection
-// test computes them, have the same sign (beyond rounding); every other
-// occluder's box lands on a grid cell across the light.
-fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>) -> bool {
+// test computes them, have the same sign (beyond rounding). Every other
+// occluder's box lands on grid cells across the light: a ray meets none
+// where its cell is empty, or holds only the sphere or box whose lit
+// outside it leaves (`leaving`, else NO_HIT).
+fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>, leaving: u32) -> bool {
     let c = shadow_cull[i];
     if c.enabled == 0u {
         return true;
@@ -79,27 +81,27 @@ fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>) -> bool {
         }
     }
     let g = vec2<f32>(dot(c.u.xyz, o) - c.u.w, dot(c.v.xyz, o) - c.v.w) * c.cells_per_unit;
-    let dims = vec2<f32>(c.dims);
-    if any(g < vec2<f32>(0.0)) || any(g >= dims) {
+    if any(g < vec2<f32>(0.0)) || any(g >= vec2<f32>(c.dims)) {
         return false;
     }
     if any(g != g) {
         return true;
     }
-    let bit = u32(g.y) * c.dims.x + u32(g.x);
-    return (shadow_cells[c.first_word + bit / 32u] & (1u << (bit % 32u))) != 0u;
+    let cell = shadow_cells[c.first_cell + u32(g.y) * c.dims.x + u32(g.x)];
+    return cell != 0u && cell != leaving + 1u;
 }
 
 // Whether the shadow ray from p (unit normal n) towards light i finds
 // something in the way; a surface facing away from a light casts no ray
 // (it is unlit by it anyway), nor does one that nothing can block.
-fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>) -> bool {
+// `leaving`: the instance hit from outside at p, else NO_HIT.
+fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>, leaving: u32) -> bool {
     let ls = sample_light(light, p);
     if light.radiance.w <= 0.0 || dot(n, ls.to_light) <= 0.0 {
         return false;
     }
     let origin = p + n * frame.ray_epsilon;
-    if !shadow_may_be_blocked(i, origin, ls.to_light) {
+    if !shadow_may_be_blocked(i, origin, ls.to_light, leaving) {
         return false;
     }
     return trace(origin, ls.to_light, 0.0, ls.distance, false, true).instance != NO_HIT;
@@ -108,7 +110,7 @@ fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>) -> bool {
 // Ambient, rim and every light, with a shadow ray per shadow-casting light
 // the surface faces. The shadow rays go first (bit i of `blocked`: light i
 // is blocked), then the lights are summed in their order.
-fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f32> {
+fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: u32) -> vec3<f32> {
     var c = shade_ambient(m, n, v, frame.ambient.rgb);
     var blocked = 0u;
     if SHADOWS_ENABLED {
@@ -116,7 +118,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f
         for (var k = 0u; k < countOneBits(SHADOW_LIGHTS); k++) {
             let i = firstTrailingBit(rest);
             rest &= rest - 1u;
-            if i < frame.light_count && shadowed(i, lights[i], p, n) {
+            if i < frame.light_count && shadowed(i, lights[i], p, n, leaving) {
                 blocked |= 1u << i;
             }
         }
@@ -126,7 +128,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial) -> vec3<f
         let ls = sample_light(light, p);
         var visible = i >= 32u || (blocked & (1u << i)) == 0u;
         if SHADOWS_ENABLED && SHADOW_LIGHTS_FROM_32 && i >= 32u {
-            visible = !shadowed(i, light, p, n);
+            visible = !shadowed(i, light, p, n, leaving);
         }
         if visible {
             c += shade_light(m, n, v, ls.to_light, ls.radiance);
@@ -368,7 +370,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         if !REFLECTIONS_ENABLED || bounce == frame.max_bounces {
             reflectivity = 0.0;
         }
-        colour += weight * (1.0 - reflectivity) * shade_hit(p, n, -d, m);
+        // The instance whose outside the shadow rays leave (none when the
+        // ray hit a surface from behind).
+        let leaving = select(NO_HIT, hit.instance, dot(hit.geometric, d) < 0.0);
+        colour += weight * (1.0 - reflectivity) * shade_hit(p, n, -d, m, leaving);
         if reflectivity <= 0.0 {
             break;
         }

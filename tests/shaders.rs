@@ -181,7 +181,7 @@ fn twins_match_wgsl_layouts() {
             planes,
             cells_per_unit,
             dims,
-            first_word,
+            first_cell,
             plane_count,
             enabled,
             _pad
@@ -287,6 +287,7 @@ fn constants_and_workgroup_sizes_match() {
         ("CSG_OP_INTERSECTION", CSG_OP_INTERSECTION),
         ("CSG_OP_DIFFERENCE", CSG_OP_DIFFERENCE),
         ("CSG_NO_MATERIAL", CSG_NO_MATERIAL),
+        ("CULL_CELL_MANY", CULL_CELL_MANY),
         ("CSG_MAX_INTERVALS", CSG_MAX_INTERVALS),
         ("CSG_STACK", CSG_STACK),
         ("CSG_MESH_MAX_CROSSINGS", CSG_MESH_MAX_CROSSINGS),

@@ -123,14 +123,18 @@ struct ResolveUniforms {
 // GpuShadowCull, src/accel/layout.rs; built by src/accel/shadow_cull.rs):
 // the axes (u, v) across a directional light with the grid's lower corner
 // in w, static planes tested exactly (row y of their object_from_world),
-// and a grid of dims cells, one bit each in shadow_cells from first_word.
+// and a grid of dims cells in shadow_cells from first_cell: 0 where no
+// occluder lands, k + 1 where only instance k (a sphere or a box) does,
+// CULL_CELL_MANY otherwise.
+const CULL_CELL_MANY: u32 = 0xffffffffu;
+
 struct GpuShadowCull {
     u: vec4<f32>,
     v: vec4<f32>,
     planes: array<vec4<f32>, MAX_CULL_PLANES>,
     cells_per_unit: vec2<f32>,
     dims: vec2<u32>,
-    first_word: u32,
+    first_cell: u32,
     plane_count: u32,
     // 0: every shadow ray of this light is cast.
     enabled: u32,

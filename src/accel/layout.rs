@@ -23,10 +23,12 @@ pub const TRAVERSAL_STACK: u32 = 64;
 pub const MAX_TRAVERSAL_STEPS: u32 = 12000;
 
 /// Cells along each side of a light's shadow-cull grid, at most
-/// ([`GpuShadowCull`]); one bit per cell, so `SHADOW_CULL_CELLS^2 / 32`
-/// words of `shadow_cells` per light.
+/// ([`GpuShadowCull`]); `SHADOW_CULL_CELLS^2` words of `shadow_cells` per
+/// light.
 pub const SHADOW_CULL_CELLS: u32 = 64;
-pub const SHADOW_CULL_WORDS: u32 = SHADOW_CULL_CELLS * SHADOW_CULL_CELLS / 32;
+/// A shadow-cull cell that several occluders, or one that is not convex,
+/// land on (0: none; k + 1: only instance k, a sphere or a box).
+pub const CULL_CELL_MANY: u32 = u32::MAX;
 /// Planes per light whose shadow rays are tested against them exactly.
 pub const MAX_CULL_PLANES: u32 = 4;
 
@@ -49,8 +51,8 @@ pub struct GpuShadowCull {
     pub cells_per_unit: [f32; 2],
     /// Cells along u and v (0 x 0: no occluder in the grid).
     pub dims: [u32; 2],
-    /// The grid's first word in `shadow_cells` (bit y * dims.x + x).
-    pub first_word: u32,
+    /// The grid's first cell in `shadow_cells` (cell y * dims.x + x).
+    pub first_cell: u32,
     pub plane_count: u32,
     /// 0: every shadow ray of this light is cast (a point light, or a
     /// light that casts no shadows).
