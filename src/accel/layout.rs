@@ -25,7 +25,7 @@ pub const MAX_TRAVERSAL_STEPS: u32 = 12000;
 /// Cells along each side of a light's shadow-cull grid, at most
 /// ([`GpuShadowCull`]); `SHADOW_CULL_CELLS^2` words of `shadow_cells` per
 /// light.
-pub const SHADOW_CULL_CELLS: u32 = 64;
+pub const SHADOW_CULL_CELLS: u32 = 128;
 /// A shadow-cull cell that several occluders, or one that is not convex,
 /// land on (0: none; k + 1: only instance k, a sphere or a box).
 pub const CULL_CELL_MANY: u32 = u32::MAX;

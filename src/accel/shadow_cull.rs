@@ -31,8 +31,8 @@ use glam::{Vec2, Vec3, Vec4Swizzles};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
-    GpuShadowCull, CULL_CELL_MANY, MAX_CULL_PLANES, SHADOW_CULL_CELLS, SHAPE_BOX, SHAPE_DISK,
-    SHAPE_QUAD, SHAPE_SPHERE,
+    GpuShadowCull, CULL_CELL_MANY, MAX_CULL_PLANES, SHADOW_CULL_CELLS, SHAPE_BOX, SHAPE_CSG,
+    SHAPE_DISK, SHAPE_QUAD, SHAPE_SPHERE,
 };
 use crate::accel::SceneAccel;
 use crate::scene::Light;
@@ -81,11 +81,13 @@ pub fn build(accel: &SceneAccel, lights: &[Light]) -> ShadowCull {
     out
 }
 
-/// An occluder of the grid: its world box and what a cell it alone lands
-/// on holds (k + 1 for a sphere or a box, instance k; else
-/// [`CULL_CELL_MANY`]).
+/// An occluder of the grid: its world box, for spheres and CSG solids
+/// also a bounding sphere in object space (centre, radius) with the
+/// instance's matrix, and what a cell it alone lands on holds (k + 1 for a
+/// sphere or a box, instance k; else [`CULL_CELL_MANY`]).
 struct Occluder {
     bounds: Aabb,
+    sphere: Option<(Vec3, f32, glam::Mat4)>,
     tag: u32,
 }
 
@@ -112,10 +114,19 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
     let boxes = (0..accel.instances.len())
         .filter(|k| !flat.contains(k))
         .map(|k| {
-            let kind = accel.shapes[accel.instances[k].2 as usize].kind;
-            let convex = kind == SHAPE_SPHERE || kind == SHAPE_BOX;
+            let (world_from_object, _, shape) = accel.instances[k];
+            let shape = accel.shapes[shape as usize];
+            let convex = shape.kind == SHAPE_SPHERE || shape.kind == SHAPE_BOX;
+            // A moving instance keeps its box, which covers the motion.
+            let sphere = match shape.kind {
+                _ if accel.moving[k] => None,
+                SHAPE_SPHERE => Some((Vec3::ZERO, shape.params[0])),
+                SHAPE_CSG => Some((Vec3::from_slice(&shape.params[..3]), shape.params[3])),
+                _ => None,
+            };
             Occluder {
                 bounds: accel.world_bounds[k],
+                sphere: sphere.map(|(c, r)| (c, r, world_from_object)),
                 tag: if convex { k as u32 + 1 } else { CULL_CELL_MANY },
             }
         })
@@ -154,17 +165,31 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
     }
     let pad =
         1e-4 * (all.max - all.min).length() + 1e-5 * all.min.abs().max(all.max.abs()).max_element();
-    let rects: Vec<(Vec2, Vec2, u32)> = boxes
+    // Each occluder's footprint across the light: a rectangle (its box's
+    // projection), or the circle around the projection of its bounding
+    // sphere, whichever is smaller; (lo, hi) bounds either.
+    let footprints: Vec<(Vec2, Vec2, Option<(Vec2, f32)>, u32)> = boxes
         .iter()
         .map(|b| {
             let (lo, hi) = project(&b.bounds);
-            (lo - pad, hi + pad, b.tag)
+            let rect = (lo - pad, hi + pad, None, b.tag);
+            let Some((centre, radius, m)) = b.sphere else {
+                return rect;
+            };
+            let c = m.transform_point3(centre);
+            let c = Vec2::new(u.dot(c), v.dot(c));
+            let r = radius * projected_stretch(m, u, v) + pad;
+            if (2.0 * r) * (2.0 * r) < (hi - lo + 2.0 * pad).element_product() {
+                (c - r, c + r, Some((c, r)), b.tag)
+            } else {
+                rect
+            }
         })
         .collect();
-    let lo = rects
+    let lo = footprints
         .iter()
         .fold(Vec2::splat(f32::INFINITY), |a, r| a.min(r.0));
-    let hi = rects
+    let hi = footprints
         .iter()
         .fold(Vec2::splat(f32::NEG_INFINITY), |a, r| a.max(r.1));
     let cell = (hi - lo).max_element() / SHADOW_CULL_CELLS as f32;
@@ -183,16 +208,37 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
             (c.y.max(0.0) as u32).min(dims[1] - 1),
         ]
     };
-    for (a, b, tag) in rects {
+    for (a, b, circle, tag) in footprints {
         let (from, to) = (cell_of(a), cell_of(b));
         for y in from[1]..=to[1] {
             for x in from[0]..=to[0] {
+                if let Some((c, r)) = circle {
+                    // The cell's square, and its point nearest the centre.
+                    let corner = lo + Vec2::new(x as f32, y as f32) * cell;
+                    let nearest = c.clamp(corner, corner + cell);
+                    if nearest.distance(c) > r {
+                        continue;
+                    }
+                }
                 let cell = &mut cells[(y * dims[0] + x) as usize];
                 *cell = if *cell == 0 { tag } else { CULL_CELL_MANY };
             }
         }
     }
     Some(cull_record(u, v, lo, per_unit, dims))
+}
+
+/// The largest factor by which `m` stretches object-space lengths as seen
+/// across the light: the spectral norm of the 2 x 3 map x -> (u . Mx,
+/// v . Mx), so a ball of radius r projects inside a circle of radius r
+/// times this (exactly, for a uniformly scaled sphere).
+fn projected_stretch(m: glam::Mat4, u: Vec3, v: Vec3) -> f32 {
+    let m = glam::Mat3::from_mat4(m).transpose();
+    let (pu, pv) = (m * u, m * v);
+    let (a, c, b) = (pu.length_squared(), pv.length_squared(), pu.dot(pv));
+    let half_sum = 0.5 * (a + c);
+    let half_diff = 0.5 * (a - c);
+    (half_sum + (half_diff * half_diff + b * b).sqrt()).sqrt()
 }
 
 fn cull_record(u: Vec3, v: Vec3, lo: Vec2, per_unit: f32, dims: [u32; 2]) -> GpuShadowCull {
@@ -255,8 +301,9 @@ mod tests {
     use super::*;
     use crate::scene::Scene;
 
-    /// A floor quad, a tilted quad, a disk below the floor, boxes, spheres,
-    /// a cylinder and a moving sphere, under one directional light.
+    /// A floor quad, a tilted quad, a disk below the floor, boxes, spheres
+    /// (stretched, shrunk, moving), a cylinder and a stretched CSG solid,
+    /// under one directional light.
     fn scene(direction: &str) -> (Scene, SceneAccel) {
         let ron = format!(
             r#"(version: 1,
@@ -274,6 +321,7 @@ mod tests {
                     "ball": Sphere(radius: 0.5),
                     "crate": Box(half_extents: (0.4, 0.3, 0.5)),
                     "post": Cylinder(radius: 0.2, height: 2.0),
+                    "holed": Difference(Box(half_extents: (0.6, 0.6, 0.6)), Sphere(radius: 0.75)),
                 }},
                 instances: [
                     (shape: "floor", material: "m"),
@@ -284,6 +332,8 @@ mod tests {
                     (shape: "ball", material: "m", transform: (translate: (0.0, 1.0, 3.0)), transform_end: (translate: (1.0, 1.5, 3.0))),
                     (shape: "crate", material: "m", transform: (translate: (2.0, 0.3, 0.0), rotate_deg: (0.0, 30.0, 0.0))),
                     (shape: "post", material: "m", transform: (translate: (-2.0, 1.0, -1.0), rotate_deg: (0.0, 0.0, 25.0))),
+                    (shape: "holed", material: "m", transform: (translate: (-1.0, 1.2, -3.0), rotate_deg: (20.0, 40.0, 0.0), scale: (1.5, 0.7, 1.0))),
+                    (shape: "ball", material: "m", transform: (translate: (3.0, 1.5, 2.5), scale: (0.5, 0.5, 0.5))),
                 ],
             )"#
         );
@@ -431,6 +481,35 @@ mod tests {
                 );
             }
             assert!(culled > 300, "instance {k}: culled {culled}, cast {cast}");
+        }
+    }
+
+    /// Rays that pass a sphere 0.999 of its radius from its centre meet it,
+    /// so none may be culled, on any side: the cells that the sphere's
+    /// circle only clips at a corner must be marked too. The rays start
+    /// below the sphere (along -l), on the floor's lit side.
+    #[test]
+    fn rays_grazing_a_sphere_are_never_culled() {
+        let (scene, accel) = scene("(-0.5, -1.0, -0.6)");
+        let cull = build(&accel, &scene.lights);
+        let l = Vec3::new(0.5, 1.0, 0.6).normalize();
+        let (u, v) = l.any_orthonormal_pair();
+        // The ball at (-1, 0.5, 0) of radius 0.5, and the shrunk ball at
+        // (3, 1.5, 2.5) of radius 0.25.
+        for (centre, radius) in [
+            (Vec3::new(-1.0, 0.5, 0.0), 0.5),
+            (Vec3::new(3.0, 1.5, 2.5), 0.25),
+        ] {
+            for k in 0..720 {
+                let a = k as f32 / 720.0 * std::f32::consts::TAU;
+                let o = centre + (u * a.cos() + v * a.sin()) * (0.999 * radius) - l * 0.4;
+                let hit = accel.closest_hit(o, l, 0.0, f32::INFINITY);
+                assert!(hit.hit.is_some(), "the ray from {o} should graze the ball");
+                assert!(
+                    may_be_blocked(&cull.lights[0], &cull.cells, o, l, u32::MAX),
+                    "the ray from {o} grazing the ball at {centre} was culled"
+                );
+            }
         }
     }
 
