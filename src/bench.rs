@@ -15,6 +15,7 @@ use std::time::Instant;
 
 use glam::{Mat4, Vec3};
 
+use celray::gpu::shader::ShaderOverrides;
 use celray::gpu::twins::GpuRay;
 use celray::gpu::Gpu;
 use celray::render::ray_batch::RayBatch;
@@ -56,12 +57,30 @@ pub struct BenchArgs {
     /// (tools/embree-compare).
     #[arg(long, value_name = "FILE")]
     pub export_rays: Option<PathBuf>,
+    /// What `kernels` gives per pass over the timed frames: the mean, or
+    /// the fastest frame's GPU ms (min), which a shared or busy machine
+    /// disturbs far less (docs/performance.md).
+    #[arg(long, value_enum, default_value_t = PassStat::Mean)]
+    pub pass_stat: PassStat,
+    /// Read shader files from DIR (by their path under `shaders/`), the
+    /// built-in copy for those it lacks: to time a kernel change without
+    /// rebuilding.
+    #[arg(long, value_name = "DIR")]
+    pub shaders: Option<PathBuf>,
     /// The global `--accel` (set by main): what the frame cases walk.
     #[arg(skip)]
     pub accel: celray::render::AccelChoice,
 }
 
-/// Wall milliseconds per frame (mean, median) and mean GPU ms per pass.
+/// How each pass's GPU time is summed up over the timed frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum PassStat {
+    #[default]
+    Mean,
+    Min,
+}
+
+/// Wall milliseconds per frame (mean, median) and GPU ms per pass.
 struct FrameStats {
     mean: f64,
     median: f64,
@@ -101,7 +120,7 @@ fn time_frames(
     });
     renderer.enable_pass_timing(gpu);
     let mut times = Vec::new();
-    let mut passes = PassMeans::default();
+    let mut passes = PassMeans::new(args.pass_stat);
     for i in 0..args.frames + 3 {
         let start = Instant::now();
         renderer.render_sample(gpu)?;
@@ -127,16 +146,25 @@ fn time_frames(
     })
 }
 
-/// Mean GPU milliseconds per pass over the samples that timed it.
-#[derive(Default)]
+/// GPU milliseconds per pass over the samples that timed it: the mean, or
+/// the least.
 struct PassMeans {
+    stat: PassStat,
     sums: Vec<(&'static str, f64, u32)>,
 }
 
 impl PassMeans {
+    fn new(stat: PassStat) -> PassMeans {
+        PassMeans {
+            stat,
+            sums: Vec::new(),
+        }
+    }
+
     fn add(&mut self, pass_times: &[(&'static str, f64)]) {
         for &(name, ms) in pass_times {
             match self.sums.iter_mut().find(|(n, _, _)| *n == name) {
+                Some((_, least, _)) if self.stat == PassStat::Min => *least = least.min(ms),
                 Some((_, sum, count)) => {
                     *sum += ms;
                     *count += 1;
@@ -746,7 +774,7 @@ fn temporal_rows(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
         };
         let mut renderer = Renderer::new(gpu, scene.clone(), settings)?;
         renderer.enable_pass_timing(gpu);
-        let (mut wall, mut passes) = (0.0, PassMeans::default());
+        let (mut wall, mut passes) = (0.0, PassMeans::new(args.pass_stat));
         for i in 0..args.frames + 3 {
             let mut camera = scene.camera.clone();
             let turn = glam::Quat::from_rotation_y((0.5 * i as f32).to_radians());
@@ -922,6 +950,12 @@ fn scene_case(
 }
 
 pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
+    if let Some(dir) = &args.shaders {
+        if !dir.is_dir() {
+            anyhow::bail!("--shaders {}: not a folder", dir.display());
+        }
+        gpu.set_shader_overrides(Some(ShaderOverrides::read_dir(dir)?));
+    }
     if args.frames == 0 {
         anyhow::bail!("--frames must be at least 1 (frames timed per case)");
     }

@@ -125,6 +125,10 @@ fn counts_past_their_bounds_are_refused_naming_the_bound() {
             &["bench", "rays", "--export-rays", "no-such-folder/rays.bin"],
             "no-such-folder does not exist",
         ),
+        case(
+            &["bench", "floor", "--shaders", "no-such-folder"],
+            "--shaders no-such-folder: not a folder",
+        ),
     ];
     if cfg!(feature = "app") {
         // Refused before any window is opened.

@@ -134,6 +134,10 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
     (planes, boxes)
 }
 
+/// An occluder across the light: the rectangle (lo, hi) bounding it, the
+/// circle (centre, radius) it lies in where that is tighter, and its tag.
+type Footprint = (Vec2, Vec2, Option<(Vec2, f32)>, u32);
+
 /// The grid of one directional light (`to_light`: unit, towards the
 /// light) over `boxes`, written to `cells`; None where culling is off (a
 /// box that is not finite).
@@ -168,7 +172,7 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
     // Each occluder's footprint across the light: a rectangle (its box's
     // projection), or the circle around the projection of its bounding
     // sphere, whichever is smaller; (lo, hi) bounds either.
-    let footprints: Vec<(Vec2, Vec2, Option<(Vec2, f32)>, u32)> = boxes
+    let footprints: Vec<Footprint> = boxes
         .iter()
         .map(|b| {
             let (lo, hi) = project(&b.bounds);
@@ -355,6 +359,26 @@ mod tests {
             .collect()
     }
 
+    /// Whether the first light's shadow ray from `o` along `l` is culled;
+    /// where it is, the CPU tracer must find no hit along it.
+    fn culled_meets_nothing(
+        cull: &ShadowCull,
+        accel: &SceneAccel,
+        o: Vec3,
+        l: Vec3,
+        leaving: u32,
+    ) -> bool {
+        if may_be_blocked(&cull.lights[0], &cull.cells, o, l, leaving) {
+            return false;
+        }
+        let hit = accel.closest_hit(o, l, 0.0, f32::INFINITY).hit;
+        assert!(
+            hit.is_none(),
+            "the ray from {o} along {l} (leaving {leaving}) was culled but meets {hit:?}"
+        );
+        true
+    }
+
     /// The property the trace kernel relies on: wherever the cull says a
     /// shadow ray cannot be blocked, the CPU reference tracer finds no hit
     /// along it. Rays start anywhere in and around the scene, on the floor
@@ -374,17 +398,10 @@ mod tests {
             origins.extend(points(4000, 6.0).iter().map(|p| Vec3::new(p.x, 1e-3, p.z)));
             let (mut culled, mut cast) = (0, 0);
             for o in origins {
-                if may_be_blocked(&cull.lights[0], &cull.cells, o, l, u32::MAX) {
-                    cast += 1;
-                    continue;
+                match culled_meets_nothing(&cull, &accel, o, l, u32::MAX) {
+                    true => culled += 1,
+                    false => cast += 1,
                 }
-                culled += 1;
-                let hit = accel.closest_hit(o, l, 0.0, f32::INFINITY);
-                assert!(
-                    hit.hit.is_none(),
-                    "light {direction}: the ray from {o} was culled but meets instance {:?}",
-                    hit.hit.map(|h| h.instance)
-                );
             }
             // Both outcomes occur often, so the check above ran on many
             // culled rays (a light from below culls the fewest).
@@ -469,16 +486,10 @@ mod tests {
                     continue;
                 }
                 let o = world_from_object.transform_point3(p) + n * eps;
-                if may_be_blocked(&cull.lights[0], &cull.cells, o, l, k as u32) {
-                    cast += 1;
-                    continue;
+                match culled_meets_nothing(&cull, &accel, o, l, k as u32) {
+                    true => culled += 1,
+                    false => cast += 1,
                 }
-                culled += 1;
-                let hit = accel.closest_hit(o, l, 0.0, f32::INFINITY);
-                assert!(
-                    hit.hit.is_none(),
-                    "instance {k}: culled ray from {o} meets {hit:?}"
-                );
             }
             assert!(culled > 300, "instance {k}: culled {culled}, cast {cast}");
         }
