@@ -45,22 +45,27 @@ pub const PLANE_MARGIN: f32 = 1e-5;
 pub const CELLS_PER_LIGHT: usize = (SHADOW_CULL_CELLS * SHADOW_CULL_CELLS) as usize;
 
 /// What the trace pass reads: one [`GpuShadowCull`] per light (at least
-/// one) and [`CELLS_PER_LIGHT`] cells per light.
+/// one) and [`CELLS_PER_LIGHT`] cells for each of the first
+/// [`MAX_CULL_LIGHTS`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ShadowCull {
     pub lights: Vec<GpuShadowCull>,
     pub cells: Vec<u32>,
 }
 
+/// Lights that get a grid: the first ones (each grid is 64 KiB; a light
+/// past them casts all its shadow rays). The buffers' sizes depend only on
+/// the light count, so edits of lights rewrite them in place.
+pub const MAX_CULL_LIGHTS: usize = 8;
+
 /// The cull data of `lights` over the instances of `accel`.
 pub fn build(accel: &SceneAccel, lights: &[Light]) -> ShadowCull {
-    let count = lights.len().max(1);
     let mut out = ShadowCull {
-        lights: vec![bytemuck::Zeroable::zeroed(); count],
-        cells: vec![0; count * CELLS_PER_LIGHT],
+        lights: vec![bytemuck::Zeroable::zeroed(); lights.len().max(1)],
+        cells: vec![0; lights.len().clamp(1, MAX_CULL_LIGHTS) * CELLS_PER_LIGHT],
     };
     let (planes, boxes) = split_occluders(accel);
-    for (i, light) in lights.iter().enumerate() {
+    for (i, light) in lights.iter().enumerate().take(MAX_CULL_LIGHTS) {
         if let Light::Directional {
             direction,
             cast_shadows: true,
@@ -531,6 +536,12 @@ mod tests {
         let cull = build(&accel, &scene.lights);
         assert_eq!(cull.lights.len(), 3);
         assert_eq!(cull.cells.len(), 3 * CELLS_PER_LIGHT);
+        // Past the first MAX_CULL_LIGHTS lights, none is culled.
+        let many = vec![scene.lights[0].clone(); MAX_CULL_LIGHTS + 2];
+        let cull_many = build(&accel, &many);
+        assert_eq!(cull_many.cells.len(), MAX_CULL_LIGHTS * CELLS_PER_LIGHT);
+        assert_eq!(cull_many.lights[MAX_CULL_LIGHTS - 1].enabled, 1);
+        assert_eq!(cull_many.lights[MAX_CULL_LIGHTS].enabled, 0);
         assert_eq!(cull.lights[1].enabled, 0);
         assert_eq!(cull.lights[2].enabled, 0);
         assert!(may_be_blocked(
