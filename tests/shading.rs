@@ -593,18 +593,19 @@ fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
 /// The outline marks have a timer span of their own ("outline_tiles"),
 /// beside the accumulation's, wherever some outline reaches another pixel
 /// (1 px or wider), and none where every outline is narrower: the default
-/// scene as shipped, then with every outline 0.5 px wide.
+/// scene as shipped, then with every outline 0.5 px wide. Raytrace mode
+/// runs no raster pass (nothing reads its targets there), hybrid both.
 #[test]
 fn the_outline_marks_are_timed_as_a_pass_of_their_own() {
     let gpu = gpu();
-    let pass_names = |scene: celray::scene::Scene| {
+    let pass_names = |scene: celray::scene::Scene, mode: RenderMode| {
         let mut renderer = celray::render::Renderer::new(
             &gpu,
             scene,
             RenderSettings {
                 width: 64,
                 height: 48,
-                mode: RenderMode::Raster,
+                mode,
                 ..Default::default()
             },
         )
@@ -622,12 +623,23 @@ fn the_outline_marks_are_timed_as_a_pass_of_their_own() {
     };
     let shipped = celray::scene::Scene::builtin_default();
     assert_eq!(
-        pass_names(shipped.clone()),
+        pass_names(shipped.clone(), RenderMode::Raster),
         ["raster", "outline_tiles", "accumulate"]
+    );
+    assert_eq!(
+        pass_names(shipped.clone(), RenderMode::Hybrid),
+        ["raster", "trace", "outline_tiles", "accumulate"]
+    );
+    assert_eq!(
+        pass_names(shipped.clone(), RenderMode::Raytrace),
+        ["trace", "outline_tiles", "accumulate"]
     );
     let mut thin = shipped;
     for m in &mut thin.materials {
         m.outline_width_px = m.outline_width_px.min(0.5);
     }
-    assert_eq!(pass_names(thin), ["raster", "accumulate"]);
+    assert_eq!(
+        pass_names(thin, RenderMode::Raster),
+        ["raster", "accumulate"]
+    );
 }

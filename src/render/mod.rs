@@ -601,14 +601,17 @@ impl Renderer {
         if let Some((pass, _)) = &moving {
             pass.encode_snapshot(&mut encoder, &self.targets, traced);
         }
-        self.raster.encode(
-            &mut encoder,
-            &self.targets,
-            &self.buffers,
-            background,
-            &raster::RasterDraws { mode, levels },
-            timer.as_mut().and_then(|t| t.timer.render_writes(t.raster)),
-        );
+        // In raytrace mode nothing reads the raster targets: no pass at all.
+        if mode != RenderMode::Raytrace {
+            self.raster.encode(
+                &mut encoder,
+                &self.targets,
+                &self.buffers,
+                background,
+                &raster::RasterDraws { mode, levels },
+                timer.as_mut().and_then(|t| t.timer.render_writes(t.raster)),
+            );
+        }
         if let (true, Some(time), Some(driver)) = (traced, motion_time, self.driver.as_mut()) {
             // The driver's top level holds sample k's transforms: rebuilt here.
             driver.encode_motion(&mut encoder, &self.scene, time);
