@@ -32,7 +32,7 @@ use glam::{Vec2, Vec3, Vec4Swizzles};
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
     GpuShadowCull, CULL_CELL_MANY, MAX_CULL_PLANES, SHADOW_CULL_CELLS, SHAPE_BOX, SHAPE_CSG,
-    SHAPE_DISK, SHAPE_QUAD, SHAPE_SPHERE,
+    SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
 };
 use crate::accel::SceneAccel;
 use crate::scene::Light;
@@ -93,7 +93,31 @@ pub fn build(accel: &SceneAccel, lights: &[Light]) -> ShadowCull {
 struct Occluder {
     bounds: Aabb,
     sphere: Option<(Vec3, f32, glam::Mat4)>,
+    /// A static mesh's triangles in world space, each projected on its
+    /// own (empty: the box or sphere stands for the occluder).
+    triangles: Vec<[Vec3; 3]>,
     tag: u32,
+}
+
+/// Mesh triangles projected one by one, in all instances together: past
+/// this budget a mesh instance's box stands for it.
+pub const MAX_FOOTPRINT_TRIANGLES: usize = 1 << 18;
+
+/// The triangles (object space) of the bottom-level BVH rooted at `root`.
+fn mesh_triangles(accel: &SceneAccel, root: u32) -> Vec<[Vec3; 3]> {
+    let mut out = Vec::new();
+    let mut stack = vec![root];
+    while let Some(i) = stack.pop() {
+        let node = accel.nodes[i as usize];
+        if node.count == 0 {
+            stack.extend([node.left_or_first, node.left_or_first + 1]);
+            continue;
+        }
+        for t in &accel.triangles[node.left_or_first as usize..][..node.count as usize] {
+            out.push([t.p0, t.p1, t.p2].map(|p| Vec3::from_slice(&p[..3])));
+        }
+    }
+    out
 }
 
 /// The static quads and disks tested exactly (the largest
@@ -116,11 +140,23 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
         .iter()
         .map(|&k| accel.instances[k].1.row(1).to_array())
         .collect();
+    let mut budget = MAX_FOOTPRINT_TRIANGLES;
     let boxes = (0..accel.instances.len())
         .filter(|k| !flat.contains(k))
         .map(|k| {
             let (world_from_object, _, shape) = accel.instances[k];
             let shape = accel.shapes[shape as usize];
+            let mut triangles = Vec::new();
+            if shape.kind == SHAPE_MESH && !accel.moving[k] {
+                let mesh = mesh_triangles(accel, shape.blas_root);
+                if mesh.len() <= budget {
+                    budget -= mesh.len();
+                    triangles = mesh
+                        .into_iter()
+                        .map(|t| t.map(|p| world_from_object.transform_point3(p)))
+                        .collect();
+                }
+            }
             let convex = shape.kind == SHAPE_SPHERE || shape.kind == SHAPE_BOX;
             // A moving instance keeps its box, which covers the motion.
             let sphere = match shape.kind {
@@ -132,6 +168,7 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
             Occluder {
                 bounds: accel.world_bounds[k],
                 sphere: sphere.map(|(c, r)| (c, r, world_from_object)),
+                triangles,
                 tag: if convex { k as u32 + 1 } else { CULL_CELL_MANY },
             }
         })
@@ -176,25 +213,33 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
         1e-4 * (all.max - all.min).length() + 1e-5 * all.min.abs().max(all.max.abs()).max_element();
     // Each occluder's footprint across the light: a rectangle (its box's
     // projection), or the circle around the projection of its bounding
-    // sphere, whichever is smaller; (lo, hi) bounds either.
-    let footprints: Vec<Footprint> = boxes
+    // sphere, whichever is smaller; (lo, hi) bounds either. A static mesh
+    // within the budget: one rectangle per triangle (a ray meets a
+    // triangle only where it starts inside the triangle's projection).
+    let triangle_rect = |t: &[Vec3; 3]| {
+        let p = t.map(|p| Vec2::new(u.dot(p), v.dot(p)));
+        let (lo, hi) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+        (lo - pad, hi + pad, None, CULL_CELL_MANY)
+    };
+    let mut footprints: Vec<Footprint> = boxes
         .iter()
-        .map(|b| {
-            let (lo, hi) = project(&b.bounds);
-            let rect = (lo - pad, hi + pad, None, b.tag);
-            let Some((centre, radius, m)) = b.sphere else {
-                return rect;
-            };
-            let c = m.transform_point3(centre);
-            let c = Vec2::new(u.dot(c), v.dot(c));
-            let r = radius * projected_stretch(m, u, v) + pad;
-            if (2.0 * r) * (2.0 * r) < (hi - lo + 2.0 * pad).element_product() {
-                (c - r, c + r, Some((c, r)), b.tag)
-            } else {
-                rect
-            }
-        })
+        .flat_map(|b| b.triangles.iter().map(triangle_rect))
         .collect();
+    footprints.extend(boxes.iter().filter(|b| b.triangles.is_empty()).map(|b| {
+        let (lo, hi) = project(&b.bounds);
+        let rect = (lo - pad, hi + pad, None, b.tag);
+        let Some((centre, radius, m)) = b.sphere else {
+            return rect;
+        };
+        let c = m.transform_point3(centre);
+        let c = Vec2::new(u.dot(c), v.dot(c));
+        let r = radius * projected_stretch(m, u, v) + pad;
+        if (2.0 * r) * (2.0 * r) < (hi - lo + 2.0 * pad).element_product() {
+            (c - r, c + r, Some((c, r)), b.tag)
+        } else {
+            rect
+        }
+    }));
     let lo = footprints
         .iter()
         .fold(Vec2::splat(f32::INFINITY), |a, r| a.min(r.0));
@@ -311,8 +356,9 @@ mod tests {
     use crate::scene::Scene;
 
     /// A floor quad, a tilted quad, a disk below the floor, boxes, spheres
-    /// (stretched, shrunk, moving), a cylinder and a stretched CSG solid,
-    /// under one directional light.
+    /// (stretched, shrunk, moving), a cylinder, a stretched CSG solid and
+    /// the spot mesh (its triangles projected one by one), under one
+    /// directional light.
     fn scene(direction: &str) -> (Scene, SceneAccel) {
         let ron = format!(
             r#"(version: 1,
@@ -331,6 +377,7 @@ mod tests {
                     "crate": Box(half_extents: (0.4, 0.3, 0.5)),
                     "post": Cylinder(radius: 0.2, height: 2.0),
                     "holed": Difference(Box(half_extents: (0.6, 0.6, 0.6)), Sphere(radius: 0.75)),
+                    "cow": Mesh(path: "assets/models/spot/spot_triangulated.obj"),
                 }},
                 instances: [
                     (shape: "floor", material: "m"),
@@ -343,6 +390,7 @@ mod tests {
                     (shape: "post", material: "m", transform: (translate: (-2.0, 1.0, -1.0), rotate_deg: (0.0, 0.0, 25.0))),
                     (shape: "holed", material: "m", transform: (translate: (-1.0, 1.2, -3.0), rotate_deg: (20.0, 40.0, 0.0), scale: (1.5, 0.7, 1.0))),
                     (shape: "ball", material: "m", transform: (translate: (3.0, 1.5, 2.5), scale: (0.5, 0.5, 0.5))),
+                    (shape: "cow", material: "m", transform: (translate: (-3.5, 0.737, 3.0), rotate_deg: (0.0, 145.0, 0.0))),
                 ],
             )"#
         );
@@ -527,6 +575,37 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A mesh marks the cells of its triangles' projections, not its box's:
+    /// floor points whose shadow ray crosses the cow's box but misses the
+    /// cow are culled (many of them), and no culled ray meets anything.
+    #[test]
+    fn a_mesh_marks_only_its_triangles_footprint() {
+        let (scene, accel) = scene("(-0.5, -1.0, -0.6)");
+        let cull = build(&accel, &scene.lights);
+        let l = Vec3::new(0.5, 1.0, 0.6).normalize();
+        let cow = accel.instances.len() - 1;
+        let b = accel.world_bounds[cow];
+        let (mut culled_in_box, mut in_box) = (0, 0);
+        for i in 0..120 {
+            for j in 0..120 {
+                // Floor points under the cow's box, seen along the light.
+                let o = Vec3::new(-6.5 + 0.04 * i as f32, 1e-3, 0.0 + 0.04 * j as f32);
+                let culled = culled_meets_nothing(&cull, &accel, o, l, u32::MAX);
+                if crate::accel::intersect::ray_box(o, l.recip(), b.min, b.max, 0.0, f32::INFINITY)
+                    .is_some()
+                {
+                    in_box += 1;
+                    culled_in_box += usize::from(culled);
+                }
+            }
+        }
+        assert!(in_box > 2000, "{in_box} rays cross the cow's box");
+        assert!(
+            culled_in_box > in_box / 4,
+            "{culled_in_box} of {in_box} culled"
+        );
     }
 
     /// Point lights and lights that cast no shadows keep every ray.
