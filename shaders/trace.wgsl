@@ -84,6 +84,7 @@ fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>, leaving: u32) -> bo
     if any(g < vec2<f32>(0.0)) || any(g >= vec2<f32>(c.dims)) {
         return false;
     }
+    // A NaN origin fails both tests above: cast its ray.
     if any(g != g) {
         return true;
     }

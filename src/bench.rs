@@ -120,7 +120,7 @@ fn time_frames(
     });
     renderer.enable_pass_timing(gpu);
     let mut times = Vec::new();
-    let mut passes = PassMeans::new(args.pass_stat);
+    let mut passes = PassStats::new(args.pass_stat);
     for i in 0..args.frames + 3 {
         let start = Instant::now();
         renderer.render_sample(gpu)?;
@@ -142,20 +142,20 @@ fn time_frames(
     Ok(FrameStats {
         mean,
         median: times[times.len() / 2],
-        passes: passes.means(),
+        passes: passes.summary(),
     })
 }
 
 /// GPU milliseconds per pass over the samples that timed it: the mean, or
 /// the least.
-struct PassMeans {
+struct PassStats {
     stat: PassStat,
     sums: Vec<(&'static str, f64, u32)>,
 }
 
-impl PassMeans {
-    fn new(stat: PassStat) -> PassMeans {
-        PassMeans {
+impl PassStats {
+    fn new(stat: PassStat) -> PassStats {
+        PassStats {
             stat,
             sums: Vec::new(),
         }
@@ -174,7 +174,7 @@ impl PassMeans {
         }
     }
 
-    fn means(&self) -> Vec<(&'static str, f64)> {
+    fn summary(&self) -> Vec<(&'static str, f64)> {
         self.sums
             .iter()
             .map(|&(name, sum, count)| (name, sum / f64::from(count)))
@@ -775,7 +775,7 @@ fn temporal_rows(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
         };
         let mut renderer = Renderer::new(gpu, scene.clone(), settings)?;
         renderer.enable_pass_timing(gpu);
-        let (mut wall, mut passes) = (0.0, PassMeans::new(args.pass_stat));
+        let (mut wall, mut passes) = (0.0, PassStats::new(args.pass_stat));
         for i in 0..args.frames + 3 {
             let mut camera = scene.camera.clone();
             let turn = glam::Quat::from_rotation_y((0.5 * i as f32).to_radians());
@@ -794,7 +794,7 @@ fn temporal_rows(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<()> 
         let st = FrameStats {
             mean: wall,
             median: wall,
-            passes: passes.means(),
+            passes: passes.summary(),
         };
         r.case(
             &format!("temporal_{}", temporal.name()),

@@ -42,18 +42,23 @@ impl Aabb {
         e.x * e.y + e.y * e.z + e.z * e.x
     }
 
-    /// The box of the 8 corners of `self` under `m`.
-    pub fn transformed(&self, m: glam::Mat4) -> Aabb {
-        let mut out = Aabb::EMPTY;
-        for i in 0..8 {
-            let corner = Vec3::new(
+    /// The 8 corners (bit 0 of the index picks max.x, bit 1 max.y, bit 2
+    /// max.z).
+    pub fn corners(&self) -> [Vec3; 8] {
+        std::array::from_fn(|i| {
+            Vec3::new(
                 if i & 1 == 0 { self.min.x } else { self.max.x },
                 if i & 2 == 0 { self.min.y } else { self.max.y },
                 if i & 4 == 0 { self.min.z } else { self.max.z },
-            );
-            out = out.grow_point(m.transform_point3(corner));
-        }
-        out
+            )
+        })
+    }
+
+    /// The box of the 8 corners of `self` under `m`.
+    pub fn transformed(&self, m: glam::Mat4) -> Aabb {
+        self.corners()
+            .into_iter()
+            .fold(Aabb::EMPTY, |out, c| out.grow_point(m.transform_point3(c)))
     }
 }
 

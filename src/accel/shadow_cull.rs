@@ -4,11 +4,13 @@
 //! along the light's direction l. It can only meet an instance whose world
 //! box it crosses, and a ray along l crosses a box only where o, projected
 //! along l onto a plane across it, falls inside the box's projection. So
-//! per directional light the occluders' boxes are projected onto two axes
-//! (u, v) across l, and a grid of up to [`SHADOW_CULL_CELLS`]^2 cells over
-//! those projections records which boxes land on each cell: none, only one
-//! sphere or box (its instance), or more ([`CULL_CELL_MANY`]). A ray whose
-//! origin projects onto an empty cell, or off the grid, meets none of them.
+//! per directional light each occluder's footprint is projected onto two
+//! axes (u, v) across l: its box's rectangle, the circle around its
+//! bounding sphere (spheres and CSG solids, where smaller), or each of its
+//! triangles (static meshes). A grid of up to [`SHADOW_CULL_CELLS`]^2 cells
+//! over them records which land on each cell: none, only one sphere or box
+//! (its instance), or more ([`CULL_CELL_MANY`]). A ray whose origin
+//! projects onto an empty cell, or off the grid, meets none of them.
 //! Nor does a ray leaving the outside of a sphere or a box on its lit side
 //! (the kernel only casts towards lights a surface faces) when that solid
 //! is all its cell holds: a convex solid lies wholly behind its tangent
@@ -185,27 +187,21 @@ type Footprint = (Vec2, Vec2, Option<(Vec2, f32)>, u32);
 /// box that is not finite).
 fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<GpuShadowCull> {
     let (u, v) = to_light.any_orthonormal_pair();
-    let project = |b: &Aabb| {
-        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for i in 0..8 {
-            let corner = Vec3::new(
-                if i & 1 == 0 { b.min.x } else { b.max.x },
-                if i & 2 == 0 { b.min.y } else { b.max.y },
-                if i & 4 == 0 { b.min.z } else { b.max.z },
-            );
-            let p = Vec2::new(u.dot(corner), v.dot(corner));
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-        (lo, hi)
+    let across = |p: Vec3| Vec2::new(u.dot(p), v.dot(p));
+    let project = |points: &[Vec3]| {
+        let ps = points.iter().map(|&p| across(p));
+        ps.fold(
+            (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(p), hi.max(p)),
+        )
     };
+    if boxes.is_empty() {
+        return Some(cull_record(u, v, Vec2::ZERO, 0.0, [0, 0]));
+    }
     // The margin covers a ray drifting off its projection over the scene
     // (l is only nearly perpendicular to u and v in f32) and the rounding
     // of the kernel's projection: both far below 1e-4 of the scene's size.
     let all = boxes.iter().fold(Aabb::EMPTY, |a, b| a.grow(b.bounds));
-    if boxes.is_empty() {
-        return Some(cull_record(u, v, Vec2::ZERO, 0.0, [0, 0]));
-    }
     if !(all.min.is_finite() && all.max.is_finite()) {
         return None;
     }
@@ -217,8 +213,7 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
     // within the budget: one rectangle per triangle (a ray meets a
     // triangle only where it starts inside the triangle's projection).
     let triangle_rect = |t: &[Vec3; 3]| {
-        let p = t.map(|p| Vec2::new(u.dot(p), v.dot(p)));
-        let (lo, hi) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+        let (lo, hi) = project(t);
         (lo - pad, hi + pad, None, CULL_CELL_MANY)
     };
     let mut footprints: Vec<Footprint> = boxes
@@ -226,13 +221,12 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
         .flat_map(|b| b.triangles.iter().map(triangle_rect))
         .collect();
     footprints.extend(boxes.iter().filter(|b| b.triangles.is_empty()).map(|b| {
-        let (lo, hi) = project(&b.bounds);
+        let (lo, hi) = project(&b.bounds.corners());
         let rect = (lo - pad, hi + pad, None, b.tag);
         let Some((centre, radius, m)) = b.sphere else {
             return rect;
         };
-        let c = m.transform_point3(centre);
-        let c = Vec2::new(u.dot(c), v.dot(c));
+        let c = across(m.transform_point3(centre));
         let r = radius * projected_stretch(m, u, v) + pad;
         if (2.0 * r) * (2.0 * r) < (hi - lo + 2.0 * pad).element_product() {
             (c - r, c + r, Some((c, r)), b.tag)
