@@ -134,8 +134,8 @@ fn shade_fragment(m: GpuMaterial, world_pos: vec3<f32>, world_normal: vec3<f32>,
     let eye = frame.eye_in_world.xyz;
     let v = normalize(eye - world_pos);
     var c = shade_ambient(m, n, v, frame.ambient.rgb);
-    for (var i = 0u; i < frame.light_count; i++) {
-        let ls = sample_light(lights[i], world_pos);
+    for (var i = 0u; i < light_loop_count(frame.light_count); i++) {
+        let ls = sample_light(i, lights[i], world_pos);
         c += shade_light(m, n, v, ls.to_light, ls.radiance);
     }
     var out: GBuffer;

@@ -97,7 +97,7 @@ fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>, leaving: u32) -> bo
 // (it is unlit by it anyway), nor does one that nothing can block.
 // `leaving`: the instance hit from outside at p, else NO_HIT.
 fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>, leaving: u32) -> bool {
-    let ls = sample_light(light, p);
+    let ls = sample_light(i, light, p);
     if light.radiance.w <= 0.0 || dot(n, ls.to_light) <= 0.0 {
         return false;
     }
@@ -126,7 +126,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: 
     }
     for (var i = 0u; i < frame.light_count; i++) {
         let light = lights[i];
-        let ls = sample_light(light, p);
+        let ls = sample_light(i, light, p);
         var visible = i >= 32u || (blocked & (1u << i)) == 0u;
         if SHADOWS_ENABLED && SHADOW_LIGHTS_FROM_32 && i >= 32u {
             visible = !shadowed(i, light, p, n, leaving);

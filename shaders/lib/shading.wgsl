@@ -21,7 +21,32 @@ fn is_toon(m: GpuMaterial) -> bool {
     return m.model == SHADING_TOON;
 }
 
-fn is_directional(light: GpuLight) -> bool {
+// The raster pipelines fix the number of lights and each light's kind
+// (src/render/raster.rs, LightLayout) when a scene has at most
+// MAX_FIXED_LIGHTS: the fragment shader's loop over the lights then unrolls,
+// each light's fields load from a constant index, and each light runs only
+// its own kind's code. On the CPU driver a loop over frame.light_count
+// loads every field per pixel and runs both kinds' code for every light.
+// LIGHT_COUNT is LIGHTS_DYNAMIC (the default, and the trace kernel's) when
+// the count is left to frame.light_count; POINT_LIGHTS: bit i set when
+// light i is a point light.
+override LIGHT_COUNT: u32 = LIGHTS_DYNAMIC;
+override POINT_LIGHTS: u32 = 0u;
+
+// How many lights a light loop visits: LIGHT_COUNT when fixed, else
+// `frame_count` (frame.light_count).
+fn light_loop_count(frame_count: u32) -> u32 {
+    if LIGHT_COUNT != LIGHTS_DYNAMIC {
+        return LIGHT_COUNT;
+    }
+    return frame_count;
+}
+
+// Whether light i (the light itself: `light`) is directional.
+fn is_directional(i: u32, light: GpuLight) -> bool {
+    if LIGHT_COUNT != LIGHTS_DYNAMIC {
+        return ((POINT_LIGHTS >> i) & 1u) == 0u;
+    }
     if LIGHT_KINDS == 1u {
         return true;
     }
@@ -39,9 +64,10 @@ struct LightSample {
 }
 
 // Directional lights arrive undiminished; point lights fall off as 1/d^2.
-fn sample_light(light: GpuLight, p: vec3<f32>) -> LightSample {
+// `light` is light i.
+fn sample_light(i: u32, light: GpuLight, p: vec3<f32>) -> LightSample {
     var s: LightSample;
-    if is_directional(light) {
+    if is_directional(i, light) {
         s.to_light = -normalize(light.position_or_direction.xyz);
         s.radiance = light.radiance.rgb;
         s.distance = 3.0e38;

@@ -227,8 +227,9 @@ impl Renderer {
 
     fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
         let shading = ShadingVariant::of(&self.scene.materials, &self.scene.lights);
+        let lights = raster::LightLayout::of(&self.scene.lights);
         self.raster
-            .prepare(gpu, &self.frame, &self.buffers, shading);
+            .prepare(gpu, &self.frame, &self.buffers, shading, lights);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         let traced = self.trace.prepare(
             gpu,
@@ -388,8 +389,9 @@ impl Renderer {
         // Edited materials or lights may need other code in the trace kernel
         // (e.g. a first reflective material).
         let shading = ShadingVariant::of(&self.scene.materials, &self.scene.lights);
+        let lights = raster::LightLayout::of(&self.scene.lights);
         self.raster
-            .prepare(gpu, &self.frame, &self.buffers, shading);
+            .prepare(gpu, &self.frame, &self.buffers, shading, lights);
         let variant = self.trace.variant_for_edit(trace::Variant::of(
             &self.scene,
             &self.buffers,
