@@ -4,6 +4,12 @@
 #include "lib/types.wgsl"
 #include "lib/color.wgsl"
 
+// Fixed per pipeline (src/render/resolve.rs), so only their code is in
+// the shader: the tone map (TONE_MAP_*), and whether to encode sRGB (for
+// targets whose format does not).
+override TONE_MAP: u32 = TONE_MAP_CLAMP;
+override ENCODE_SRGB: bool = false;
+
 @group(0) @binding(0) var<uniform> params: ResolveUniforms;
 @group(0) @binding(1) var<storage, read> accum: array<vec4<f32>>;
 
@@ -17,8 +23,8 @@ fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
 fn fs_main(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let a = accum[u32(pos.y) * params.width + u32(pos.x)];
     let mean = a.rgb / max(a.w, 1.0);
-    var c = tone_map(mean * params.exposure, params.tone_map);
-    if params.encode_srgb == 1u {
+    var c = tone_map(mean * params.exposure, TONE_MAP);
+    if ENCODE_SRGB {
         c = srgb_encode(c);
     }
     return vec4<f32>(c, 1.0);

@@ -16,6 +16,7 @@ use std::time::Instant;
 use glam::{Mat4, Vec3};
 
 use celray::gpu::shader::ShaderOverrides;
+use celray::gpu::timer::GpuTimer;
 use celray::gpu::twins::GpuRay;
 use celray::gpu::Gpu;
 use celray::render::ray_batch::RayBatch;
@@ -119,18 +120,37 @@ fn time_frames(
         view_formats: &[],
     });
     renderer.enable_pass_timing(gpu);
+    // The resolve is recorded outside the renderer's sample, as a window
+    // records it: timed as a pass of its own where the device stamps
+    // inside encoders.
+    let mut resolve_timer = GpuTimer::new(gpu, "bench resolve", ["resolve"])
+        .filter(|(timer, _)| timer.stamps_inside_encoders());
     let mut times = Vec::new();
     let mut passes = PassStats::new(args.pass_stat);
     for i in 0..args.frames + 3 {
         let start = Instant::now();
         renderer.render_sample(gpu)?;
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        if let Some((timer, [span])) = resolve_timer.as_mut() {
+            timer.begin();
+            timer.stamp_begin(&mut encoder, *span);
+        }
         renderer.resolve_into(gpu, &mut encoder, &target)?;
+        if let Some((timer, [span])) = resolve_timer.as_mut() {
+            timer.stamp_end(&mut encoder, *span);
+            timer.finish(&mut encoder);
+        }
         gpu.queue.submit([encoder.finish()]);
+        if let Some((timer, _)) = resolve_timer.as_mut() {
+            timer.after_submit();
+        }
         gpu.wait_idle()?;
         // Read every sample's pass times, warm-up ones too: a sample is
         // timed only once the one before it has been read.
-        let pass_times = renderer.pass_times(gpu)?;
+        let mut pass_times = renderer.pass_times(gpu)?;
+        if let Some((timer, _)) = resolve_timer.as_mut() {
+            pass_times.extend(timer.wait(gpu)?);
+        }
         if i < 3 {
             continue;
         }

@@ -203,9 +203,8 @@ fn twins_match_wgsl_layouts() {
         module,
         ResolveUniforms {
             width,
-            tone_map,
-            encode_srgb,
-            exposure
+            exposure,
+            _pad
         }
     );
 }

@@ -668,3 +668,76 @@ fn the_outline_marks_are_timed_as_a_pass_of_their_own() {
         ["raster", "accumulate"]
     );
 }
+
+/// The resolve pass's tone maps and sRGB encoding follow their formulas.
+/// An empty view shows the background, linear (2.0, 0.5, 0.02): clamped,
+/// (1.0, 0.5, 0.02); Reinhard's c / (1 + c), (2/3, 1/3, 0.0196). Each is
+/// resolved into the capture target (an sRGB format, which encodes as it
+/// stores) and into an `Rgba8Unorm` target (the shader encodes, its
+/// `ENCODE_SRGB` pipeline), and must be the formula's sRGB byte within 1
+/// (the rounding of two 8-bit encoders). Unencoded, 0.5 would read 128
+/// rather than 188.
+#[test]
+fn resolve_tone_maps_and_encodes_srgb_by_the_formulas() {
+    use celray::gpu::readback;
+    use celray::render::{Renderer, ToneMap};
+    let gpu = gpu();
+    let ron = r#"(version: 1,
+        camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 16, height: 16),
+        background: (2.0, 0.5, 0.02),
+        lights: [],
+        materials: { "m": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong) },
+        shapes: { "ball": Sphere(radius: 1.0) },
+        instances: [(shape: "ball", material: "m", transform: (translate: (0.0, 0.0, 20.0)))],
+    )"#;
+    let scene = scene(ron);
+    let background = Vec3::new(2.0, 0.5, 0.02);
+    for (tone_map, linear) in [
+        (ToneMap::Clamp, background.min(Vec3::ONE)),
+        (ToneMap::Reinhard, background / (Vec3::ONE + background)),
+    ] {
+        let settings = RenderSettings {
+            tone_map,
+            ..pixel_centre_settings(&scene)
+        };
+        let mut r = Renderer::new(&gpu, scene.clone(), settings).unwrap();
+        r.render_to_convergence(&gpu, |_, _| {}).unwrap();
+        let unorm = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("unorm target"),
+            size: wgpu::Extent3d {
+                width: 16,
+                height: 16,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        r.resolve_into(&gpu, &mut encoder, &unorm).unwrap();
+        gpu.queue.submit([encoder.finish()]);
+        let expected = [srgb8(linear.x), srgb8(linear.y), srgb8(linear.z)];
+        for (target, img) in [
+            ("sRGB capture", r.read_srgb8(&gpu).unwrap()),
+            (
+                "Rgba8Unorm",
+                readback::read_texture(&gpu, &unorm, 4).unwrap(),
+            ),
+        ] {
+            for (x, y) in [(0, 0), (8, 8), (15, 15)] {
+                let got = rgb_at(&img, 16, x, y);
+                for ch in 0..3 {
+                    let diff = (i32::from(got[ch]) - i32::from(expected[ch])).abs();
+                    assert!(
+                        diff <= 1,
+                        "{} into {target}, pixel ({x},{y}): got {got:?}, formula {expected:?}",
+                        tone_map.name()
+                    );
+                }
+            }
+        }
+    }
+}

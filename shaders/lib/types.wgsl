@@ -113,10 +113,8 @@ const TONE_MAP_REINHARD: u32 = 1u;
 
 struct ResolveUniforms {
     width: u32,
-    tone_map: u32,
-    // 1 when the target is not an sRGB format, so the shader encodes.
-    encode_srgb: u32,
     exposure: f32,
+    _pad: vec2<u32>,
 }
 
 // Which shadow rays of one light can meet something at all (twin of

@@ -140,9 +140,8 @@ pub struct GpuInstance {
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ResolveUniforms {
     pub width: u32,
-    pub tone_map: u32,
-    pub encode_srgb: u32,
     pub exposure: f32,
+    pub _pad: [u32; 2],
 }
 
 /// A vertex of a triangle mesh as the raster pass reads it.

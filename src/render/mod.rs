@@ -265,7 +265,7 @@ impl Renderer {
         self.accumulate
             .prepare(gpu, &self.frame, &self.buffers, &self.targets);
         for pass in &mut self.resolves {
-            pass.prepare(gpu, &self.settings, &self.targets);
+            pass.prepare(gpu, &self.settings, &self.targets)?;
         }
         if self.settings.temporal == Temporal::Off {
             self.reproject = None;
@@ -752,7 +752,7 @@ impl Renderer {
             Some(i) => i,
             None => {
                 let mut pass = ResolvePass::new(gpu, format)?;
-                pass.prepare(gpu, &self.settings, &self.targets);
+                pass.prepare(gpu, &self.settings, &self.targets)?;
                 self.resolves.push(pass);
                 self.resolves.len() - 1
             }

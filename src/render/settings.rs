@@ -62,6 +62,16 @@ named_enum!(ToneMap {
     Reinhard => "reinhard",
 });
 
+impl ToneMap {
+    /// The resolve shader's `TONE_MAP` constant.
+    pub fn to_gpu(self) -> u32 {
+        match self {
+            ToneMap::Clamp => TONE_MAP_CLAMP,
+            ToneMap::Reinhard => TONE_MAP_REINHARD,
+        }
+    }
+}
+
 /// Which passes find what each pixel sees.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RenderMode {
@@ -238,16 +248,13 @@ impl RenderSettings {
         }
     }
 
-    /// The resolve pass's uniforms for a target of this width.
-    pub fn to_gpu(&self, target_is_srgb: bool) -> ResolveUniforms {
+    /// The resolve pass's uniforms for a target of this width (its tone
+    /// map is a pipeline constant, [`ToneMap::to_gpu`]).
+    pub fn to_gpu(&self) -> ResolveUniforms {
         ResolveUniforms {
             width: self.width,
-            tone_map: match self.tone_map {
-                ToneMap::Clamp => TONE_MAP_CLAMP,
-                ToneMap::Reinhard => TONE_MAP_REINHARD,
-            },
-            encode_srgb: u32::from(!target_is_srgb),
             exposure: self.exposure,
+            _pad: [0; 2],
         }
     }
 }
