@@ -89,7 +89,15 @@ impl AccumulatePass {
                             layout: Some(&pipeline_layout),
                             module,
                             entry_point: Some("main"),
-                            compilation_options: Default::default(),
+                            // The accumulate kernel writes every texel of
+                            // its workgroup tile before its barrier and reads
+                            // only those (load_tile, outline_at): zeroing the
+                            // tile first would cost every workgroup a pass
+                            // over it and a barrier, marked or not.
+                            compilation_options: wgpu::PipelineCompilationOptions {
+                                zero_initialize_workgroup_memory: false,
+                                ..Default::default()
+                            },
                             cache: None,
                         });
                 (pipeline, layout)
