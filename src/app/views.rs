@@ -66,8 +66,18 @@ fn view_texture(gpu: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> wgp
         usage: wgpu::TextureUsages::RENDER_ATTACHMENT
             | wgpu::TextureUsages::TEXTURE_BINDING
             | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
+        // The resolve writes through the sRGB view (resolve_format); the
+        // window copies and egui samples the encoded bytes as they are.
+        view_formats: &[resolve_format(format)],
     })
+}
+
+/// The format the views are resolved through: the sRGB twin of the image's
+/// format, so the target encodes as it stores (cheaper on the CPU driver
+/// than the resolve shader's own encoding, and the same bytes a capture
+/// gets); the image's own format where it has no twin.
+fn resolve_format(format: wgpu::TextureFormat) -> wgpu::TextureFormat {
+    format.add_srgb_suffix()
 }
 
 impl ViewSlots {
@@ -297,7 +307,12 @@ impl ViewSlots {
             };
             if slot.shown != Some(renderer.samples()) {
                 // One view's failure is reported; the others still draw.
-                match renderer.resolve_into(gpu, encoder, &slot.texture) {
+                match renderer.resolve_into_as(
+                    gpu,
+                    encoder,
+                    &slot.texture,
+                    resolve_format(self.format),
+                ) {
                     Ok(()) => slot.shown = Some(renderer.samples()),
                     Err(e) => failed = Some(e),
                 }
@@ -352,7 +367,12 @@ impl ViewSlots {
             let fail = |e: String| format!("cannot save view {}: {e}", i + 1);
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             renderer
-                .resolve_into(gpu, &mut encoder, &slot.texture)
+                .resolve_into_as(
+                    gpu,
+                    &mut encoder,
+                    &slot.texture,
+                    resolve_format(self.format),
+                )
                 .map_err(|e| fail(e.to_string()))?;
             gpu.queue.submit([encoder.finish()]);
             let label = labels.get(i).map_or("", String::as_str);

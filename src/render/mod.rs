@@ -740,6 +740,22 @@ impl Renderer {
         encoder: &mut wgpu::CommandEncoder,
         target: &wgpu::Texture,
     ) -> Result<(), GpuError> {
+        self.resolve_into_as(gpu, encoder, target, target.format())
+    }
+
+    /// [`Renderer::resolve_into`] through a view of `target` in
+    /// `view_format`, one of the view formats `target` was created with.
+    /// Resolving a non-sRGB texture through its sRGB twin lets the target
+    /// encode as it stores rather than the shader: on the CPU driver that
+    /// halves the resolve (docs/performance.md), and the bytes are those a
+    /// capture gets.
+    pub fn resolve_into_as(
+        &mut self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::Texture,
+        view_format: wgpu::TextureFormat,
+    ) -> Result<(), GpuError> {
         let size = (target.width(), target.height());
         if size != (self.targets.width, self.targets.height) {
             return Err(GpuError::Unsupported(format!(
@@ -747,7 +763,7 @@ impl Renderer {
                 size.0, size.1, self.targets.width, self.targets.height
             )));
         }
-        let format = target.format();
+        let format = view_format;
         let index = match self.resolves.iter().position(|p| p.format() == format) {
             Some(i) => i,
             None => {
@@ -757,7 +773,10 @@ impl Renderer {
                 self.resolves.len() - 1
             }
         };
-        let view = target.create_view(&Default::default());
+        let view = target.create_view(&wgpu::TextureViewDescriptor {
+            format: Some(view_format),
+            ..Default::default()
+        });
         self.resolves[index].encode(encoder, &view);
         Ok(())
     }
