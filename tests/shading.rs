@@ -136,7 +136,7 @@ fn blinn_phong_matches_cpu_formula() {
     let gpu = gpu();
     let lit = "Directional(direction: (-1.0, -1.0, -1.0), color: (1.0, 0.9, 0.8), intensity: 0.8),
             Point(position: (-2.0, 3.0, 4.0), color: (0.6, 0.7, 1.0), intensity: 15.0),";
-    let dark: String = (0..celray::gpu::twins::MAX_FIXED_LIGHTS)
+    let dark: String = (0..celray::render::raster::MAX_FIXED_LIGHTS)
         .map(|i| {
             if i % 2 == 0 {
                 "Point(position: (1.0, 2.0, 3.0), color: (1.0, 1.0, 1.0), intensity: 0.0),"

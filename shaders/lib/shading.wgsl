@@ -22,11 +22,11 @@ fn is_toon(m: GpuMaterial) -> bool {
 }
 
 // The raster pipelines fix the number of lights and each light's kind
-// (src/render/raster.rs, LightLayout) when a scene has at most
-// MAX_FIXED_LIGHTS: the fragment shader's loop over the lights then unrolls,
-// each light's fields load from a constant index, and each light runs only
-// its own kind's code. On the CPU driver a loop over frame.light_count
-// loads every field per pixel and runs both kinds' code for every light.
+// (src/render/raster.rs, LightLayout) when a scene has at most 8: the
+// fragment shader's loop over the lights then unrolls, and each light runs
+// only its own kind's code. On the CPU driver the loop over
+// frame.light_count, a count the compiler does not know, cost about a
+// third of the default scene's raster pass (docs/performance.md).
 // LIGHT_COUNT is LIGHTS_DYNAMIC (the default, and the trace kernel's) when
 // the count is left to frame.light_count; POINT_LIGHTS: bit i set when
 // light i is a point light.

@@ -45,7 +45,6 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ),
         ("TRACE_WORKGROUP", twins::TRACE_WORKGROUP),
         ("LIGHTS_DYNAMIC", twins::LIGHTS_DYNAMIC),
-        ("MAX_FIXED_LIGHTS", twins::MAX_FIXED_LIGHTS),
         ("MAX_CULL_PLANES", twins::MAX_CULL_PLANES),
         ("RAY_BATCH_WORKGROUP", twins::RAY_BATCH_WORKGROUP),
         ("ACCUMULATE_WORKGROUP", twins::ACCUMULATE_WORKGROUP),

@@ -182,9 +182,6 @@ pub const MAX_OUTLINE_RADIUS: u32 = 8;
 /// `LIGHT_COUNT` of lib/shading.wgsl when the light count is not fixed per
 /// pipeline: loops run to `frame.light_count`.
 pub const LIGHTS_DYNAMIC: u32 = u32::MAX;
-/// Scenes with at most this many lights get raster pipelines with the
-/// light count and each light's kind fixed (`render::raster::LightLayout`).
-pub const MAX_FIXED_LIGHTS: u32 = 8;
 /// Workgroup edge of the trace kernel (8 x 8 invocations).
 pub const TRACE_WORKGROUP: u32 = 8;
 // The trace kernel lays its invocations out in 4 x 2 blocks (trace.wgsl).

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use glam::{Mat3, Vec3};
 
-use crate::gpu::twins::{Vertex, FAR_DEPTH, LIGHTS_DYNAMIC, MAX_FIXED_LIGHTS};
+use crate::gpu::twins::{Vertex, FAR_DEPTH, LIGHTS_DYNAMIC};
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::camera::SampleCamera;
 use crate::render::scene_buffers::{
@@ -43,6 +43,10 @@ struct RasterVariant {
     /// The lights' count and kinds, when fixed.
     lights: LightLayout,
 }
+
+/// Scenes with at most this many lights get raster pipelines with the
+/// light count and each light's kind fixed ([`LightLayout`]).
+pub const MAX_FIXED_LIGHTS: u32 = 8;
 
 /// The light count and each light's kind, fixed in the raster pipelines
 /// of scenes with at most [`MAX_FIXED_LIGHTS`] lights (override constants
