@@ -12,59 +12,46 @@
 // Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
 @group(1) @binding(0) var<uniform> frame: FrameUniforms;
 
+// One output for both vertex entry points: vs_main leaves the textured
+// inputs (locations 11 to 13) zero, and fs_main does not read them, so the
+// CPU driver does not interpolate them there.
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) world_pos: vec3<f32>,
     @location(1) world_normal: vec3<f32>,
-    @location(2) @interpolate(flat) instance: u32,
-    @location(3) @interpolate(flat) material: u32,
-    @location(4) @interpolate(flat) mirrored: u32,
+    // The instance, its material, 1 when its transform mirrors, and the
+    // mesh's own base-colour map word (layer and sampler bits), or
+    // NO_TEXTURE (vs_textured only).
+    @location(2) @interpolate(flat) ids: vec4<u32>,
     // The material's shading fields, read once per vertex and passed flat:
     // a fragment reading them from the storage buffer costs the CPU driver
     // a gather per field per fragment (it cannot tell that all fragments of
     // a triangle share the material).
-    @location(5) @interpolate(flat) base_shininess: vec4<f32>,
-    @location(6) @interpolate(flat) specular: vec4<f32>,
-    @location(7) @interpolate(flat) rim: vec4<f32>,
-    @location(8) @interpolate(flat) model_bands: vec2<u32>,
-    @location(9) @interpolate(flat) thresholds0: vec4<f32>,
-    @location(10) @interpolate(flat) thresholds1: vec4<f32>,
-    @location(11) @interpolate(flat) thresholds2: vec4<f32>,
-    @location(12) @interpolate(flat) thresholds3: vec4<f32>,
+    @location(3) @interpolate(flat) base_shininess: vec4<f32>,
+    @location(4) @interpolate(flat) specular: vec4<f32>,
+    @location(5) @interpolate(flat) rim: vec4<f32>,
+    @location(6) @interpolate(flat) model_bands: vec2<u32>,
+    @location(7) @interpolate(flat) thresholds0: vec4<f32>,
+    @location(8) @interpolate(flat) thresholds1: vec4<f32>,
+    @location(9) @interpolate(flat) thresholds2: vec4<f32>,
+    @location(10) @interpolate(flat) thresholds3: vec4<f32>,
+    // What textured scenes' fragments also need (vs_textured / fs_textured).
+    @location(11) object_pos: vec3<f32>,
+    @location(12) object_normal: vec3<f32>,
+    @location(13) uv: vec2<f32>,
 }
 
-// What textured scenes' fragments also need (vs_textured / fs_textured):
-// untextured scenes run vs_main / fs_main without these varyings.
-struct VsOutTextured {
-    @builtin(position) clip: vec4<f32>,
-    @location(0) world_pos: vec3<f32>,
-    @location(1) world_normal: vec3<f32>,
-    @location(2) @interpolate(flat) instance: u32,
-    @location(3) @interpolate(flat) material: u32,
-    @location(4) @interpolate(flat) mirrored: u32,
-    @location(5) object_pos: vec3<f32>,
-    @location(6) object_normal: vec3<f32>,
-    @location(7) uv: vec2<f32>,
-    // The mesh's own base-colour map word (layer and sampler bits), or NO_TEXTURE.
-    @location(8) @interpolate(flat) map: u32,
-}
-
-@vertex
-fn vs_main(
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @builtin(instance_index) instance: u32,
-) -> VsOut {
+// A vertex of `instance` with its material's shading fields (the textured
+// inputs left zero).
+fn shade_vertex(position: vec3<f32>, normal: vec3<f32>, instance: u32) -> VsOut {
     // Field by field: copying the whole struct costs on CPU drivers.
     let p = instances[instance].world_from_object * vec4<f32>(position, 1.0);
     var out: VsOut;
     out.clip = frame.clip_from_world * p;
     out.world_pos = p.xyz;
     out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
-    out.instance = instance;
     let material = instances[instance].material;
-    out.material = material;
-    out.mirrored = instances[instance].mirrored;
+    out.ids = vec4<u32>(instance, material, instances[instance].mirrored, NO_TEXTURE);
     out.base_shininess = vec4<f32>(materials[material].base_color, materials[material].shininess);
     out.specular = vec4<f32>(materials[material].specular_color, materials[material].specular_threshold);
     out.rim = vec4<f32>(materials[material].rim_color, materials[material].rim_threshold);
@@ -84,26 +71,44 @@ fn vs_main(
 }
 
 @vertex
+fn vs_main(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @builtin(instance_index) instance: u32,
+) -> VsOut {
+    return shade_vertex(position, normal, instance);
+}
+
+@vertex
 fn vs_textured(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
     @location(3) map: u32,
     @builtin(instance_index) instance: u32,
-) -> VsOutTextured {
-    let p = instances[instance].world_from_object * vec4<f32>(position, 1.0);
-    var out: VsOutTextured;
-    out.clip = frame.clip_from_world * p;
-    out.world_pos = p.xyz;
-    out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
-    out.instance = instance;
-    out.material = instances[instance].material;
-    out.mirrored = instances[instance].mirrored;
+) -> VsOut {
+    var out = shade_vertex(position, normal, instance);
+    out.ids.w = map;
     out.object_pos = position;
     out.object_normal = normal;
     out.uv = uv;
-    out.map = map;
     return out;
+}
+
+// The material's shading fields, from the flat inputs; the others stay
+// zero (fs_textured loads the texture fields it needs).
+fn flat_material(in: VsOut) -> GpuMaterial {
+    var m: GpuMaterial;
+    m.base_color = in.base_shininess.xyz;
+    m.shininess = in.base_shininess.w;
+    m.specular_color = in.specular.xyz;
+    m.specular_threshold = in.specular.w;
+    m.rim_color = in.rim.xyz;
+    m.rim_threshold = in.rim.w;
+    m.model = in.model_bands.x;
+    m.band_count = in.model_bands.y;
+    m.thresholds = array<vec4<f32>, 4>(in.thresholds0, in.thresholds1, in.thresholds2, in.thresholds3);
+    return m;
 }
 
 struct GBuffer {
@@ -147,26 +152,22 @@ fn shade_fragment(m: GpuMaterial, world_pos: vec3<f32>, world_normal: vec3<f32>,
 
 @fragment
 fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBuffer {
-    // The fields shading reads, from the flat inputs; the others stay zero
-    // (untextured scenes never read them here).
-    var m: GpuMaterial;
-    m.base_color = in.base_shininess.xyz;
-    m.shininess = in.base_shininess.w;
-    m.specular_color = in.specular.xyz;
-    m.specular_threshold = in.specular.w;
-    m.rim_color = in.rim.xyz;
-    m.rim_threshold = in.rim.w;
-    m.model = in.model_bands.x;
-    m.band_count = in.model_bands.y;
-    m.thresholds = array<vec4<f32>, 4>(in.thresholds0, in.thresholds1, in.thresholds2, in.thresholds3);
-    return shade_fragment(m, in.world_pos, in.world_normal, in.instance, in.mirrored, front_facing);
+    return shade_fragment(flat_material(in), in.world_pos, in.world_normal, in.ids.x, in.ids.z, front_facing);
 }
 
 @fragment
-fn fs_textured(in: VsOutTextured, @builtin(front_facing) front_facing: bool) -> GBufferTextured {
-    var m = materials[in.material];
+fn fs_textured(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBufferTextured {
+    var m = flat_material(in);
+    // The fields raster_albedo reads, one load each (not the whole struct).
+    let material = in.ids.y;
+    m.checker_a = materials[material].checker_a;
+    m.checker_size = materials[material].checker_size;
+    m.checker_b = materials[material].checker_b;
+    m.texture_layer = materials[material].texture_layer;
+    m.uv_scale = materials[material].uv_scale;
+    m.texture_nearest = materials[material].texture_nearest;
     m.base_color = raster_albedo(in, m);
-    let g = shade_fragment(m, in.world_pos, in.world_normal, in.instance, in.mirrored, front_facing);
+    let g = shade_fragment(m, in.world_pos, in.world_normal, in.ids.x, in.ids.z, front_facing);
     return GBufferTextured(g.color, g.normal_depth, g.id, vec4<f32>(m.base_color, 1.0));
 }
 
@@ -181,12 +182,12 @@ fn fs_textured(in: VsOutTextured, @builtin(front_facing) front_facing: bool) -> 
 // mapping at the point and at the point one pixel over (the same finite
 // difference as the trace pass's), taken the short way round a longitude
 // seam.
-fn raster_albedo(in: VsOutTextured, m: GpuMaterial) -> vec3<f32> {
+fn raster_albedo(in: VsOut, m: GpuMaterial) -> vec3<f32> {
     let dp_dx = dpdxFine(in.object_pos);
     let dp_dy = dpdyFine(in.object_pos);
     var dx = dpdxFine(in.uv);
     var dy = dpdyFine(in.uv);
-    let shape = shapes[instances[in.instance].shape];
+    let shape = shapes[instances[in.ids.x].shape];
     var uv = in.uv;
     if shape.kind != SHAPE_MESH {
         let p = in.object_pos;
@@ -205,8 +206,8 @@ fn raster_albedo(in: VsOutTextured, m: GpuMaterial) -> vec3<f32> {
     if m.texture_layer != NO_TEXTURE {
         return sample_map_level(m.texture_layer, m.texture_nearest != 0u, uv * m.uv_scale, lod);
     }
-    if in.map != NO_TEXTURE {
-        return sample_map(in.map, uv * m.uv_scale, lod);
+    if in.ids.w != NO_TEXTURE {
+        return sample_map(in.ids.w, uv * m.uv_scale, lod);
     }
     return m.base_color;
 }
