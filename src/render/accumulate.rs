@@ -93,7 +93,8 @@ impl AccumulatePass {
                             // its workgroup tile before its barrier and reads
                             // only those (load_tile, outline_at): zeroing the
                             // tile first would cost every workgroup a pass
-                            // over it and a barrier, marked or not.
+                            // over it and a barrier, marked or not. (The
+                            // outline marks have no workgroup memory.)
                             compilation_options: wgpu::PipelineCompilationOptions {
                                 zero_initialize_workgroup_memory: false,
                                 ..Default::default()
