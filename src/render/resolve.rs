@@ -10,7 +10,7 @@ use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{buffer_entries, read_only_storage_entry, uniform_entry};
 use crate::gpu::{shader, Gpu, GpuError};
-use crate::render::settings::RenderSettings;
+use crate::render::settings::{RenderSettings, ToneMap};
 use crate::render::targets::Targets;
 
 /// The resolve pass's one group, binding by binding as
@@ -26,9 +26,9 @@ pub struct ResolvePass {
     /// not uniforms, so the fragment shader holds only their code (a
     /// branch on a uniform costs the CPU driver about 2 ms of 6 here,
     /// docs/performance.md).
-    pipelines: HashMap<u32, wgpu::RenderPipeline>,
-    /// The tone map (`TONE_MAP_*`) of the current settings.
-    tone_map: u32,
+    pipelines: HashMap<ToneMap, wgpu::RenderPipeline>,
+    /// The tone map of the current settings.
+    tone_map: ToneMap,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
     layout: wgpu::BindGroupLayout,
@@ -65,7 +65,7 @@ impl ResolvePass {
                 });
             let mut pass = ResolvePass {
                 pipelines: HashMap::new(),
-                tone_map: settings.tone_map.to_gpu(),
+                tone_map: settings.tone_map,
                 module,
                 pipeline_layout,
                 layout,
@@ -84,7 +84,7 @@ impl ResolvePass {
             return;
         }
         let constants = [
-            ("TONE_MAP", f64::from(self.tone_map)),
+            ("TONE_MAP", f64::from(self.tone_map.to_gpu())),
             // Targets of an sRGB format encode as they store.
             ("ENCODE_SRGB", if self.format.is_srgb() { 0.0 } else { 1.0 }),
         ];
@@ -135,7 +135,7 @@ impl ResolvePass {
         settings: &RenderSettings,
         targets: &Targets,
     ) -> Result<(), GpuError> {
-        self.tone_map = settings.tone_map.to_gpu();
+        self.tone_map = settings.tone_map;
         gpu.scoped(|| self.build_pipeline(gpu))?;
         gpu.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&settings.to_gpu()));

@@ -47,7 +47,7 @@ macro_rules! named_enum {
 }
 
 /// How linear radiance becomes a displayable value in [0, 1].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum ToneMap {
     /// Clamp to [0, 1]: shading values are shown as computed (what the
     /// tests compare against closed forms).
