@@ -405,6 +405,91 @@ fn toggling_a_lights_shadows_takes_effect() {
     }
 }
 
+/// What the app's views do before applying a change (`render::warmup`):
+/// the renderer predicts the pipelines the change will draw with, and a
+/// renderer on a second device compiles exactly those ahead. Each
+/// prediction is checked against the renderer after the change: a colour
+/// edit needs nothing new; a light's first shadows need a new trace
+/// variant, which the renderer has not built until the edit; turning them
+/// off again keeps that variant (an edit keeps testing the lights the
+/// pipeline tests), which a fresh renderer of that scene would not choose,
+/// so the warm-up is handed the keys and must draw with them; a bounce
+/// count changes the trace variant (the ball reflects); a switch from
+/// hybrid to raster may change what rays walk, and an added light uploads
+/// the scene again, so neither is predicted.
+#[test]
+fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
+    use celray::render::warmup::Warmer;
+    let gpu = gpu();
+    let mut scene = scene(
+        r#"(version: 1,
+        camera: (eye: (0.0, 5.0, 4.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 32, height: 24),
+        lights: [Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.8, cast_shadows: false)],
+        materials: { "floor": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong),
+                     "ball": (base_color: (0.9, 0.1, 0.1), model: BlinnPhong, reflectivity: 0.5) },
+        shapes: { "floor": Plane(Quad(half_size: (5.0, 5.0))), "ball": Sphere(radius: 0.5) },
+        instances: [(shape: "floor", material: "floor"), (shape: "ball", material: "ball", transform: (translate: (0.0, 1.5, 0.0)))],
+    )"#,
+    );
+    let hybrid = settings(&scene, RenderMode::Hybrid);
+    let mut r = rendered(&gpu, scene.clone(), hybrid.clone());
+    let start = r.pipeline_keys();
+
+    scene.materials[0].base_color = Vec3::new(0.3, 0.6, 0.3);
+    assert_eq!(r.keys_for_edit(&scene), Some(start), "a colour edit");
+    assert!(r.has_pipelines(&start));
+
+    *scene.lights[0].cast_shadows_mut() = true;
+    let on = r.keys_for_edit(&scene).expect("written in place");
+    assert_ne!(on, start, "first shadows need the shadow code");
+    assert!(!r.has_pipelines(&on), "not built before the edit");
+    r.update_scene(&gpu, scene.clone()).unwrap();
+    assert_eq!(r.pipeline_keys(), on);
+    assert!(r.has_pipelines(&on));
+
+    *scene.lights[0].cast_shadows_mut() = false;
+    let off = r.keys_for_edit(&scene).expect("written in place");
+    assert_eq!(off, on, "turning shadows off keeps the pipeline");
+    let fresh = celray::render::Renderer::new(&gpu, scene.clone(), hybrid.clone()).unwrap();
+    assert_ne!(
+        fresh.pipeline_keys(),
+        off,
+        "a fresh renderer chooses otherwise"
+    );
+    drop(fresh);
+    let mut warmer = Warmer::new(&gpu);
+    let job = warmer
+        .request(&gpu, scene.clone(), hybrid.clone(), Some(off))
+        .expect("a warm-up thread");
+    let drew = loop {
+        if let Some(outcome) = warmer.outcome(&job) {
+            break outcome.unwrap_or_else(|e| panic!("warm-up failed: {e}"));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    assert_eq!(
+        drew,
+        Some(off),
+        "the warm-up draws with the keys it is given"
+    );
+    r.update_scene(&gpu, scene.clone()).unwrap();
+    assert_eq!(r.pipeline_keys(), off);
+
+    let no_bounces = RenderSettings {
+        max_bounces: 0,
+        ..hybrid.clone()
+    };
+    let flat = r.keys_for_settings(&no_bounces).expect("same structures");
+    assert_ne!(flat, off, "no reflection code without bounces");
+    r.set_settings(&gpu, no_bounces).unwrap();
+    assert_eq!(r.pipeline_keys(), flat);
+    let raster = settings(&scene, RenderMode::Raster);
+    assert_eq!(r.keys_for_settings(&raster), None);
+    let mut more_lights = scene.clone();
+    more_lights.lights.push(scene.lights[0].clone());
+    assert_eq!(r.keys_for_edit(&more_lights), None);
+}
+
 /// Shadow rays go only to the lights that cast shadows, each to its own
 /// light, past the first 32 lights too (the trace kernel loops over a
 /// per-pipeline mask of lights 0-31 and tests lights from 32 on one by

@@ -200,6 +200,7 @@ impl LiveApp {
             has_timer: self.timer.is_some(),
             shader_dir: (self.reload.shader_dir.as_ref()).map(|d| d.display().to_string()),
             accel: self.views.accel_info(),
+            warming: self.views.warming(),
         };
         let textures = self.views.texture_ids();
         let model = &mut self.model;
@@ -391,6 +392,10 @@ impl LiveApp {
             || repaint_delay.is_zero()
         {
             self.surface.window.request_redraw();
+        } else if self.views.warming() > 0 {
+            // Converged on the old state: look again shortly for the end
+            // of the change's warm-up (render::warmup).
+            self.repaint_at = Some(Instant::now() + Duration::from_millis(100));
         } else {
             self.stats.pause();
             if repaint_delay < Duration::from_secs(3600) {

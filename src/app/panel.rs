@@ -34,6 +34,9 @@ pub struct PanelInfo<'a> {
     /// What rays walk in the first shown view ("driver" or "software"), and
     /// why the driver path is not used where it was asked for.
     pub accel: Option<(&'static str, Option<String>)>,
+    /// Views whose change waits for its shaders to compile (they show the
+    /// old state meanwhile).
+    pub warming: usize,
 }
 
 /// A combo box over `options`, named by `name`: one line per enum field.
@@ -191,6 +194,17 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
         if let Some(n) = notice {
             ui.label(RichText::new(n).small().color(Color32::YELLOW));
         }
+    }
+    if info.warming > 0 {
+        ui.label(
+            RichText::new(format!(
+                "compiling shaders for the change ({} view{}); showing the old state",
+                info.warming,
+                if info.warming == 1 { "" } else { "s" }
+            ))
+            .small()
+            .color(Color32::YELLOW),
+        );
     }
     if let Some(dir) = &info.shader_dir {
         ui.label(RichText::new(format!("shaders: {dir} (watched)")).small());

@@ -11,6 +11,7 @@ use super::screenshot;
 use super::surface::read_rgba8;
 use super::timing::FrameTimer;
 use crate::gpu::{Gpu, GpuError};
+use crate::render::warmup::{Warmer, Warming};
 use crate::render::{RenderSettings, Renderer};
 use crate::scene::Camera;
 use crate::view::ViewSpec;
@@ -39,6 +40,9 @@ struct ViewSlot {
     inputs: Option<ViewInputs>,
     /// Samples in the texture (resolved), to skip resolving unchanged images.
     shown: Option<u32>,
+    /// A change waiting for its pipelines to compile ahead
+    /// ([`crate::render::warmup`]); meanwhile the renderer draws the old state.
+    warming: Option<Warming>,
 }
 
 /// The view slots and what they share.
@@ -49,6 +53,8 @@ pub(super) struct ViewSlots {
     pub sizes: Vec<(u32, u32)>,
     /// Whether new renderers time their passes (the window has a timer).
     timed: bool,
+    /// Compiles a change's new pipelines before a view applies it.
+    warmer: Warmer,
 }
 
 fn view_texture(gpu: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> wgpu::Texture {
@@ -105,6 +111,7 @@ impl ViewSlots {
                     renderer: None,
                     inputs: None,
                     shown: None,
+                    warming: None,
                 }
             })
             .collect();
@@ -113,6 +120,7 @@ impl ViewSlots {
             format,
             sizes: Vec::new(),
             timed,
+            warmer: Warmer::new(gpu),
         }
     }
 
@@ -174,6 +182,7 @@ impl ViewSlots {
                 slot.renderer = None;
                 slot.inputs = None;
                 slot.shown = None;
+                slot.warming = None;
                 continue;
             }
             let size = self.sizes.get(i).copied().unwrap_or((1, 1));
@@ -228,10 +237,15 @@ impl ViewSlots {
         model: &Model,
     ) -> Result<(), GpuError> {
         let timed = self.timed;
-        let slot = &mut self.slots[i];
-        if slot.inputs.as_ref() == Some(&want) {
+        if self.slots[i].inputs.as_ref() == Some(&want) {
+            // Also where a change waiting for its warm-up was undone.
+            self.slots[i].warming = None;
             return Ok(());
         }
+        if !self.compiled_ahead(gpu, i, &want, model) {
+            return Ok(());
+        }
+        let slot = &mut self.slots[i];
         match (&mut slot.renderer, &slot.inputs) {
             (Some(renderer), Some(had)) if had.spec == want.spec => {
                 if had.settings != want.settings {
@@ -258,6 +272,64 @@ impl ViewSlots {
         slot.inputs = Some(want);
         slot.shown = None;
         Ok(())
+    }
+
+    /// Whether slot `i` may apply `want` now: its renderer has the
+    /// pipelines `want` draws with, or they have been compiled ahead
+    /// ([`crate::render::warmup`]), or the slot has no old image to show.
+    /// Otherwise it asks the warmer to compile them, and meanwhile the old
+    /// renderer follows the camera.
+    fn compiled_ahead(&mut self, gpu: &Gpu, i: usize, want: &ViewInputs, model: &Model) -> bool {
+        let slot = &mut self.slots[i];
+        let (Some(renderer), Some(had)) = (&mut slot.renderer, &mut slot.inputs) else {
+            return true;
+        };
+        // Built only where needed: a camera move asks no question of it.
+        let scene = || {
+            let mut scene = want.spec.apply(&model.scene);
+            scene.camera = want.camera.clone();
+            scene
+        };
+        let settings_changed = had.settings != want.settings;
+        let scene_changed = had.scene_rev != want.scene_rev;
+        // The pipelines the change will draw with, where the renderer can
+        // tell without applying it.
+        let keys = match (had.spec == want.spec, settings_changed, scene_changed) {
+            (false, _, _) | (true, true, true) => None,
+            (true, true, false) => renderer.keys_for_settings(&want.settings),
+            (true, false, true) => renderer.keys_for_edit(&scene()),
+            (true, false, false) => Some(renderer.pipeline_keys()),
+        };
+        if keys.is_some_and(|k| renderer.has_pipelines(&k)) {
+            slot.warming = None;
+            return true;
+        }
+        match slot.warming {
+            Some(w) if w.keys == keys => {
+                if self.warmer.finished(&w) {
+                    slot.warming = None;
+                    return true;
+                }
+            }
+            _ => match self
+                .warmer
+                .request(gpu, scene(), want.settings.clone(), keys)
+            {
+                Some(w) => slot.warming = Some(w),
+                None => return true,
+            },
+        }
+        if had.camera != want.camera {
+            renderer.set_camera(want.camera.clone());
+            had.camera = want.camera.clone();
+            slot.shown = None;
+        }
+        false
+    }
+
+    /// How many views wait for a change's pipelines to compile.
+    pub fn warming(&self) -> usize {
+        self.slots.iter().filter(|s| s.warming.is_some()).count()
     }
 
     /// Renders up to `per_view` samples into every shown view that has not

@@ -28,6 +28,7 @@ pub mod settings;
 pub mod targets;
 pub mod textures;
 pub mod trace;
+pub mod warmup;
 
 use wgpu::util::DeviceExt;
 
@@ -43,7 +44,7 @@ use driver_accel::DriverAccel;
 use raster::RasterPass;
 use reproject::ReprojectPass;
 use resolve::ResolvePass;
-use scene_buffers::{SceneBuffers, ShadingVariant};
+use scene_buffers::SceneBuffers;
 pub use settings::{
     AccelChoice, RenderMode, RenderSettings, Temporal, ToneMap, MAX_BOUNCES, MAX_IMAGE_SAMPLES,
     MAX_SPP,
@@ -62,6 +63,17 @@ pub const PASS_NAMES: [&str; 5] = [
     "accumulate",
     "reproject",
 ];
+
+/// The pipelines a renderer draws with, by their cache keys: the raster
+/// and trace variants and whether rays walk the driver's structures. A
+/// change that needs new ones pays for their compilation on its first
+/// frame ([`Renderer::has_pipelines`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct PipelineKeys {
+    raster: raster::RasterVariant,
+    trace: trace::Variant,
+    driver: bool,
+}
 
 /// GPU time of a sample's passes: one timer, one span per pass.
 struct SampleTimer {
@@ -226,10 +238,8 @@ impl Renderer {
     }
 
     fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
-        let shading = ShadingVariant::of(&self.scene.materials, &self.scene.lights);
-        let lights = raster::LightLayout::of(&self.scene.lights);
-        self.raster
-            .prepare(gpu, &self.frame, &self.buffers, shading, lights);
+        let raster = RasterPass::variant_of(&self.scene, &self.buffers);
+        self.raster.prepare(gpu, &self.frame, raster);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         let traced = self.trace.prepare(
             gpu,
@@ -357,13 +367,7 @@ impl Renderer {
     /// (same shapes, instances and counts), those are written in place;
     /// otherwise everything is uploaded again as in [`Renderer::set_scene`].
     pub fn update_scene(&mut self, gpu: &Gpu, scene: Scene) -> Result<(), GpuError> {
-        let same_geometry = scene.shapes == self.scene.shapes
-            && scene.instances == self.scene.instances
-            && scene.materials.len() == self.scene.materials.len()
-            && scene.lights.len() == self.scene.lights.len()
-            && textures::scene_uses_textures(&scene) == self.buffers.uses_textures
-            && textures::scene_images(&scene) == self.buffers.textures.layers;
-        if !same_geometry {
+        if !self.edits_in_place(&scene) {
             return self.set_scene(gpu, scene);
         }
         if !scene.materials.is_empty() {
@@ -386,20 +390,86 @@ impl Renderer {
             self.buffers.write_shadow_cull(gpu, &scene.lights);
         }
         self.scene = scene;
-        // Edited materials or lights may need other code in the trace kernel
+        // Edited materials or lights may need other code in the kernels
         // (e.g. a first reflective material).
-        let shading = ShadingVariant::of(&self.scene.materials, &self.scene.lights);
-        let lights = raster::LightLayout::of(&self.scene.lights);
-        self.raster
-            .prepare(gpu, &self.frame, &self.buffers, shading, lights);
-        let variant = self.trace.variant_for_edit(trace::Variant::of(
-            &self.scene,
-            &self.buffers,
-            &self.settings,
-        ));
-        self.trace.select_variant(gpu, variant)?;
+        let keys = self.keys_after_edit(&self.scene);
+        self.raster.prepare(gpu, &self.frame, keys.raster);
+        self.trace.select_variant(gpu, keys.trace)?;
         self.reset();
         Ok(())
+    }
+
+    /// Whether [`Renderer::update_scene`] can write `scene` in place: only
+    /// materials, lights, camera, ambient or background differ (same
+    /// shapes, instances and counts).
+    fn edits_in_place(&self, scene: &Scene) -> bool {
+        scene.shapes == self.scene.shapes
+            && scene.instances == self.scene.instances
+            && scene.materials.len() == self.scene.materials.len()
+            && scene.lights.len() == self.scene.lights.len()
+            && textures::scene_uses_textures(scene) == self.buffers.uses_textures
+            && textures::scene_images(scene) == self.buffers.textures.layers
+    }
+
+    /// The pipelines the renderer draws with now.
+    pub fn pipeline_keys(&self) -> PipelineKeys {
+        PipelineKeys {
+            raster: self.raster.variant(),
+            trace: self.trace.variant(),
+            driver: self.trace.uses_driver(),
+        }
+    }
+
+    /// Whether the renderer has built every pipeline of `keys` (on a
+    /// pipeline's first run, a driver that compiles lazily, as lavapipe
+    /// does, compiles it: seconds on the CPU driver).
+    pub fn has_pipelines(&self, keys: &PipelineKeys) -> bool {
+        keys.driver == self.trace.uses_driver()
+            && self.raster.has_variant(keys.raster)
+            && self.trace.has_variant(keys.trace)
+    }
+
+    /// The pipelines [`Renderer::update_scene`]`(scene)` would draw with,
+    /// where it writes `scene` in place; `None` where it would upload the
+    /// scene again (and choose every pipeline afresh).
+    pub fn keys_for_edit(&self, scene: &Scene) -> Option<PipelineKeys> {
+        self.edits_in_place(scene)
+            .then(|| self.keys_after_edit(scene))
+    }
+
+    fn keys_after_edit(&self, scene: &Scene) -> PipelineKeys {
+        let want = trace::Variant::of(scene, &self.buffers, &self.settings);
+        PipelineKeys {
+            raster: RasterPass::variant_of(scene, &self.buffers),
+            trace: self.trace.variant_for_edit(want),
+            driver: self.trace.uses_driver(),
+        }
+    }
+
+    /// The pipelines [`Renderer::set_settings`]`(settings)` would draw
+    /// with; `None` where it might change how rays find the scene (the
+    /// driver's structures or celray's BVH), which it decides then.
+    pub fn keys_for_settings(&self, settings: &RenderSettings) -> Option<PipelineKeys> {
+        let raster = |s: &RenderSettings| s.mode == RenderMode::Raster;
+        (settings.accel == self.settings.accel && raster(settings) == raster(&self.settings)).then(
+            || PipelineKeys {
+                trace: trace::Variant::of(&self.scene, &self.buffers, settings),
+                ..self.pipeline_keys()
+            },
+        )
+    }
+
+    /// Draws with the pipelines of `keys` from now on (building them if
+    /// needed): how a renderer made only to compile them ahead of a change
+    /// draws what the changed renderer will ([`warmup`]).
+    pub fn use_pipelines(&mut self, gpu: &Gpu, keys: &PipelineKeys) -> Result<(), GpuError> {
+        if keys.driver != self.trace.uses_driver() {
+            return Err(GpuError::Unsupported(
+                "these pipelines trace through another acceleration structure".into(),
+            ));
+        }
+        self.raster.prepare(gpu, &self.frame, keys.raster);
+        self.trace.select_variant(gpu, keys.trace)
     }
 
     /// Changes the camera only (no upload) and restarts accumulation; with

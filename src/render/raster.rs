@@ -34,7 +34,7 @@ use crate::gpu::layout::uniform_entry;
 
 /// What a scene needs compiled into the raster shaders.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-struct RasterVariant {
+pub struct RasterVariant {
     /// The texture code (entry points `vs_textured`/`fs_textured` rather
     /// than `vs_main`/`fs_main`).
     textures: bool,
@@ -132,22 +132,31 @@ impl RasterPass {
         })
     }
 
-    /// Builds the pipelines the scene needs (once) and binds the frame
+    /// The variant `scene` (uploaded as `buffers`) needs.
+    pub fn variant_of(scene: &Scene, buffers: &SceneBuffers) -> RasterVariant {
+        RasterVariant {
+            textures: buffers.uses_textures,
+            shading: ShadingVariant::of(&scene.materials, &scene.lights),
+            lights: LightLayout::of(&scene.lights),
+        }
+    }
+
+    /// The variant the pass draws with now.
+    pub fn variant(&self) -> RasterVariant {
+        self.variant
+    }
+
+    /// Whether the pass has built `variant`'s pipelines.
+    pub fn has_variant(&self, variant: RasterVariant) -> bool {
+        self.pipelines.contains_key(&variant)
+    }
+
+    /// Builds the pipelines of `variant` (once) and binds the frame
     /// uniforms (the scene's group is the scene's own). Called again when
-    /// materials or lights change: they choose the shading variant.
-    pub fn prepare(
-        &mut self,
-        gpu: &Gpu,
-        frame: &wgpu::Buffer,
-        scene: &SceneBuffers,
-        shading: ShadingVariant,
-        lights: LightLayout,
-    ) {
-        self.variant = RasterVariant {
-            textures: scene.uses_textures,
-            shading,
-            lights,
-        };
+    /// materials or lights change: they choose the variant
+    /// ([`RasterPass::variant_of`]).
+    pub fn prepare(&mut self, gpu: &Gpu, frame: &wgpu::Buffer, variant: RasterVariant) {
+        self.variant = variant;
         if !self.pipelines.contains_key(&self.variant) {
             let built = raster_pipelines(gpu, &self.pipeline_layout, &self.module, self.variant);
             self.pipelines.insert(self.variant, built);

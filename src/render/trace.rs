@@ -238,6 +238,20 @@ impl TracePass {
         }
     }
 
+    /// The variant the pass traces with now.
+    pub fn variant(&self) -> Variant {
+        self.variant
+    }
+
+    /// Whether the pass has built `variant`'s pipeline on the current path
+    /// (driver or software).
+    pub fn has_variant(&self, variant: Variant) -> bool {
+        match (&self.driver_group, &self.driver) {
+            (Some(_), Some(v)) => v.pipelines.contains_key(&variant),
+            _ => self.pipelines.contains_key(&variant),
+        }
+    }
+
     /// Uses the pipeline for `variant` on the current path (driver or
     /// software), building it now if this pass has not yet.
     pub fn select_variant(&mut self, gpu: &Gpu, variant: Variant) -> Result<(), GpuError> {

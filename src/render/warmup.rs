@@ -1,0 +1,174 @@
+//! Compiling a change's pipelines before a view shows it. lavapipe compiles
+//! a pipeline the first time it runs, on its one queue thread: a first
+//! reflective material or a light's first shadows stopped the whole window
+//! for 5-11 s (docs/performance.md). The warmer renders one tiny sample of
+//! the changed view on a second device of the same adapter, in a thread of
+//! its own, which fills the driver's shader cache; the view keeps its old
+//! image (the camera still moves it) until then, and its own first frame
+//! afterwards finds the compiled code in the cache. Where the driver keeps
+//! no cache the change still costs its compile when it is applied, as
+//! before.
+
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::thread::JoinHandle;
+
+use crate::gpu::shader::ShaderOverrides;
+use crate::gpu::{Gpu, GpuError};
+use crate::render::{PipelineKeys, RenderSettings, Renderer};
+use crate::scene::Scene;
+
+/// The warm-up renders at this size: the code compiled does not depend on
+/// it, and a small image keeps the second device's work to the compile.
+const WARM_SIZE: u32 = 16;
+
+/// A change to compile ahead: the changed scene and settings, and, where the
+/// view's renderer could tell them, the pipelines it will draw with
+/// ([`Renderer::keys_for_edit`]), which the warm-up then uses rather than
+/// what a new renderer would choose.
+struct Job {
+    id: u64,
+    scene: Scene,
+    settings: RenderSettings,
+    keys: Option<PipelineKeys>,
+    shaders: Option<std::sync::Arc<ShaderOverrides>>,
+}
+
+/// One view's change being compiled ahead: its job, and the pipelines that
+/// job compiles (`None` where only a new renderer could tell).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Warming {
+    id: u64,
+    /// The pipelines it compiles, where they were known.
+    pub keys: Option<PipelineKeys>,
+}
+
+/// The warm-up thread and what it has finished.
+pub struct Warmer {
+    jobs: Option<Sender<Job>>,
+    done: Receiver<(u64, Result<PipelineKeys, String>)>,
+    /// The last job finished and how it went: jobs run in order.
+    finished: Option<(u64, Result<PipelineKeys, String>)>,
+    next_id: u64,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Warmer {
+    /// Starts the thread; its device is opened on the first job, on the
+    /// adapter `gpu` uses.
+    pub fn new(gpu: &Gpu) -> Warmer {
+        let (jobs, inbox) = mpsc::channel::<Job>();
+        let (report, done) = mpsc::channel();
+        let instance = gpu.instance.clone();
+        let adapter = gpu.adapter.clone();
+        let thread = std::thread::Builder::new()
+            .name("celray pipeline warm-up".into())
+            .spawn(move || {
+                let mut device: Option<Gpu> = None;
+                for job in inbox {
+                    if device.is_none() {
+                        device = Gpu::from_adapter(instance.clone(), adapter.clone())
+                            .inspect_err(|e| log::warn!("pipeline warm-up: no second device: {e}"))
+                            .ok();
+                    }
+                    let result = match &device {
+                        Some(gpu) => {
+                            gpu.set_shader_overrides(job.shaders.as_deref().cloned());
+                            warm(gpu, &job).map_err(|e| e.to_string())
+                        }
+                        None => Err("no second device".to_string()),
+                    };
+                    if let Err(e) = &result {
+                        log::warn!("pipeline warm-up: {e}");
+                    }
+                    if report.send((job.id, result)).is_err() {
+                        break;
+                    }
+                }
+            })
+            .ok();
+        Warmer {
+            jobs: thread.as_ref().map(|_| jobs),
+            done,
+            finished: None,
+            next_id: 0,
+            thread,
+        }
+    }
+
+    /// Queues the compilation of what `scene` with `settings` draws with
+    /// (`keys` where known). `None` where there is no warm-up thread: the
+    /// change should then be applied at once.
+    pub fn request(
+        &mut self,
+        gpu: &Gpu,
+        scene: Scene,
+        settings: RenderSettings,
+        keys: Option<PipelineKeys>,
+    ) -> Option<Warming> {
+        let id = self.next_id;
+        let job = Job {
+            id,
+            scene,
+            settings: RenderSettings {
+                width: WARM_SIZE,
+                height: WARM_SIZE,
+                ..settings
+            },
+            keys,
+            shaders: gpu.shader_overrides(),
+        };
+        self.jobs.as_ref()?.send(job).ok()?;
+        self.next_id += 1;
+        Some(Warming { id, keys })
+    }
+
+    /// Whether `w` has finished (or can no longer finish: the thread is
+    /// gone). A warm-up that failed has finished too: the change is then
+    /// applied and reports its own error.
+    pub fn finished(&mut self, w: &Warming) -> bool {
+        self.outcome(w).is_some()
+    }
+
+    /// How `w` went, once it has finished: the pipelines it drew with
+    /// (`None` for a job that a later one has already overtaken in the
+    /// report), or `Err` with the reason where the warm-up failed or its
+    /// thread is gone.
+    pub fn outcome(&mut self, w: &Warming) -> Option<Result<Option<PipelineKeys>, String>> {
+        loop {
+            match self.done.try_recv() {
+                Ok(done) => self.finished = Some(done),
+                Err(mpsc::TryRecvError::Empty) => break,
+                Err(mpsc::TryRecvError::Disconnected) => {
+                    return Some(Err("the warm-up thread is gone".into()));
+                }
+            }
+        }
+        match &self.finished {
+            Some((id, result)) if *id == w.id => Some(result.clone().map(Some)),
+            Some((id, _)) if *id > w.id => Some(Ok(None)),
+            _ => None,
+        }
+    }
+}
+
+impl Drop for Warmer {
+    /// Closes the queue and waits for the job in progress.
+    fn drop(&mut self) {
+        self.jobs = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// One sample of the job's scene at the warm-up size, with its pipelines;
+/// returns the pipelines it drew with.
+fn warm(gpu: &Gpu, job: &Job) -> Result<PipelineKeys, GpuError> {
+    let mut renderer = Renderer::new(gpu, job.scene.clone(), job.settings.clone())?;
+    if let Some(keys) = &job.keys {
+        renderer.use_pipelines(gpu, keys)?;
+    }
+    renderer.render_sample(gpu)?;
+    gpu.wait_idle()?;
+    Ok(renderer.pipeline_keys())
+}
