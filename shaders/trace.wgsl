@@ -13,6 +13,7 @@
 #include "lib/csg.wgsl"
 #include "lib/random.wgsl"
 #include "lib/texture.wgsl"
+#include "lib/color.wgsl"
 
 // Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
 @group(1) @binding(0) var<uniform> frame: FrameUniforms;
@@ -20,9 +21,14 @@
 @group(1) @binding(1) var<storage, read_write> stats: array<atomic<u32>>;
 @group(1) @binding(2) var raster_normal_depth: texture_2d<f32>;
 @group(1) @binding(3) var raster_id: texture_2d<u32>;
-@group(1) @binding(4) var out_color: texture_storage_2d<rgba16float, write>;
-@group(1) @binding(5) var out_normal_depth: texture_storage_2d<rgba32float, write>;
-@group(1) @binding(6) var out_id: texture_storage_2d<r32uint, write>;
+// The G-buffer this pass writes, as buffers that are then copied into the
+// traced textures (src/render/targets.rs, TracedOutput): on the CPU driver
+// a storage-texture store costs several times a buffer store. Rows start
+// every TRACED_ROW_ALIGN_PX pixels; each texel is in its texture's format
+// (the colour as four halves).
+@group(1) @binding(4) var<storage, read_write> out_color: array<vec2<u32>>;
+@group(1) @binding(5) var<storage, read_write> out_normal_depth: array<vec4<f32>>;
+@group(1) @binding(6) var<storage, read_write> out_id: array<u32>;
 // The raster pass's base colour (hybrid: rasterized hits).
 @group(1) @binding(7) var raster_albedo: texture_2d<f32>;
 // Per light, which shadow rays can meet anything (src/accel/shadow_cull.rs).
@@ -389,7 +395,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         colour = vec3<f32>(1.0, 0.0, 1.0);
         atomicAdd(&stats[0], 1u);
     }
-    textureStore(out_color, pixel, vec4<f32>(colour, 1.0));
-    textureStore(out_normal_depth, pixel, vec4<f32>(primary_normal, primary_depth));
-    textureStore(out_id, pixel, vec4<u32>(primary_id, 0u, 0u, 0u));
+    let k = gid.y * ((frame.size_px.x + TRACED_ROW_ALIGN_PX - 1u) & ~(TRACED_ROW_ALIGN_PX - 1u)) + gid.x;
+    out_color[k] = vec2<u32>(half_bits_toward_zero(colour.r) | half_bits_toward_zero(colour.g) << 16u, half_bits_toward_zero(colour.b) | half_bits_toward_zero(1.0) << 16u);
+    out_normal_depth[k] = vec4<f32>(primary_normal, primary_depth);
+    out_id[k] = primary_id;
 }

@@ -741,3 +741,182 @@ fn resolve_tone_maps_and_encodes_srgb_by_the_formulas() {
         }
     }
 }
+
+/// The trace pass writes its colour into a buffer, as half floats rounded
+/// toward zero by `half_bits_toward_zero` (lib/color.wgsl), and copies it
+/// into the `Rgba16Float` colour texture: the bits must be those a store
+/// into that texture writes, or traced images would change. Checked on the
+/// GPU against a reference built without bit tricks (every finite half
+/// decoded exactly, in f64; the largest one not above |x|, with x's sign),
+/// over exact halves, values just above and below them, halfway points,
+/// subnormals, the overflow range and pseudo-random values; and, on
+/// lavapipe, against what its own texture store wrote for the same values.
+#[test]
+fn traced_colour_halves_are_rounded_toward_zero_as_a_texture_store_does() {
+    use celray::gpu::{readback, shader};
+    let gpu = gpu();
+    let mut inputs: Vec<f32> = vec![
+        0.0,
+        -0.0,
+        1.0,
+        1.0 + 2f32.powi(-11),
+        1.0 + 3.0 * 2f32.powi(-12),
+        0.1,
+        1.0 / 3.0,
+        0.5 - 2f32.powi(-25),
+        65504.0,
+        65519.0,
+        65520.0,
+        65535.99,
+        1.0e6,
+        f32::INFINITY,
+        2f32.powi(-14),
+        0.75 * 2f32.powi(-14),
+        2f32.powi(-24),
+        1.5 * 2f32.powi(-24),
+        2f32.powi(-25),
+        1.0e-30,
+        -2.75,
+        -1.0e-6,
+    ];
+    let mut state = 0x1234_5678u32;
+    for _ in 0..2000 {
+        state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        // Exponents from 2^-27 to 2^18, any significand, either sign.
+        let exponent = (state >> 26) % 46;
+        let bits = ((exponent + 100) << 23) | (state & 0x007f_ffff) | (state & 0x8000_0000);
+        inputs.push(f32::from_bits(bits));
+    }
+    let n = inputs.len() as u32;
+
+    // The reference: the finite halves in increasing order, decoded exactly.
+    let decode = |h: u16| {
+        let e = i32::from((h >> 10) & 0x1f);
+        let m = f64::from(h & 0x3ff);
+        if e == 0 {
+            m * 2f64.powi(-24)
+        } else {
+            (1.0 + m / 1024.0) * 2f64.powi(e - 15)
+        }
+    };
+    let positives: Vec<(u16, f64)> = (0u16..0x7c00).map(|h| (h, decode(h))).collect();
+    let reference = |x: f32| -> u16 {
+        let sign = if x.is_sign_negative() { 0x8000 } else { 0 };
+        if x.is_infinite() {
+            return sign | 0x7c00;
+        }
+        let a = f64::from(x.abs());
+        let k = positives.partition_point(|&(_, v)| v <= a);
+        sign | positives[k - 1].0
+    };
+
+    let source = format!(
+        "{}\n{}\n{}",
+        shader::compose("lib/types.wgsl").unwrap(),
+        shader::compose("lib/color.wgsl").unwrap(),
+        r#"
+@group(0) @binding(0) var<storage, read> inputs: array<f32>;
+@group(0) @binding(1) var<storage, read_write> bits: array<u32>;
+@group(0) @binding(2) var stored: texture_storage_2d<rgba16float, write>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) g: vec3<u32>) {
+    let i = g.x;
+    if i >= arrayLength(&inputs) {
+        return;
+    }
+    bits[i] = half_bits_toward_zero(inputs[i]);
+    textureStore(stored, vec2<i32>(i32(i), 0), vec4<f32>(inputs[i]));
+}
+"#
+    );
+    let device = &gpu.device;
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("half test"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("half test"),
+        layout: None,
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let input_buffer = wgpu::util::DeviceExt::create_buffer_init(
+        device,
+        &wgpu::util::BufferInitDescriptor {
+            label: Some("inputs"),
+            contents: bytemuck::cast_slice(&inputs),
+            usage: wgpu::BufferUsages::STORAGE,
+        },
+    );
+    let bits_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bits"),
+        size: u64::from(n) * 4,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("stored"),
+        size: wgpu::Extent3d {
+            width: n,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba16Float,
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let view = texture.create_view(&Default::default());
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("half test"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: input_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: bits_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(&view),
+            },
+        ],
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(n.div_ceil(64), 1, 1);
+    }
+    gpu.queue.submit([encoder.finish()]);
+    let bits = readback::copy_and_read(&gpu, &bits_buffer, u64::from(n) * 4, "bits").unwrap();
+    let bits: &[u32] = bytemuck::cast_slice(&bits);
+    let texels = readback::read_texture(&gpu, &texture, 8).unwrap();
+    let stored: &[u16] = bytemuck::cast_slice(&texels);
+    let lavapipe = gpu.summary.name.contains("llvmpipe");
+    for (i, &x) in inputs.iter().enumerate() {
+        let want = reference(x);
+        assert_eq!(
+            bits[i],
+            u32::from(want),
+            "half_bits_toward_zero({x:e}) = {:#06x}, want {want:#06x}",
+            bits[i]
+        );
+        if lavapipe {
+            assert_eq!(
+                stored[4 * i],
+                want,
+                "lavapipe stored {x:e} as {:#06x}, the function gives {want:#06x}",
+                stored[4 * i]
+            );
+        }
+    }
+}

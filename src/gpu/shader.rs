@@ -44,6 +44,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
             (twins::ACCUMULATE_WORKGROUP + 2 * twins::MAX_OUTLINE_RADIUS).pow(2),
         ),
         ("TRACE_WORKGROUP", twins::TRACE_WORKGROUP),
+        ("TRACED_ROW_ALIGN_PX", twins::TRACED_ROW_ALIGN_PX),
         ("LIGHTS_DYNAMIC", twins::LIGHTS_DYNAMIC),
         ("MAX_CULL_PLANES", twins::MAX_CULL_PLANES),
         ("RAY_BATCH_WORKGROUP", twins::RAY_BATCH_WORKGROUP),

@@ -184,6 +184,11 @@ pub const MAX_OUTLINE_RADIUS: u32 = 8;
 pub const LIGHTS_DYNAMIC: u32 = u32::MAX;
 /// Workgroup edge of the trace kernel (8 x 8 invocations).
 pub const TRACE_WORKGROUP: u32 = 8;
+/// Rows of the trace kernel's output buffers start every this many pixels
+/// (`render::targets::TracedOutput`): a copy into a texture needs rows
+/// 256-byte aligned, and 64 pixels of the narrowest texel (4 bytes) are 256.
+pub const TRACED_ROW_ALIGN_PX: u32 = 64;
+const _: () = assert!(TRACED_ROW_ALIGN_PX.is_power_of_two() && TRACED_ROW_ALIGN_PX * 4 % 256 == 0);
 // The trace kernel lays its invocations out in 4 x 2 blocks (trace.wgsl).
 const _: () = assert!(TRACE_WORKGROUP % 4 == 0);
 /// Workgroup size of the ray-batch kernel used by tests.

@@ -694,6 +694,7 @@ impl Renderer {
                 &self.targets,
                 timer.as_mut().and_then(|t| t.timer.compute_writes(t.trace)),
             );
+            (self.targets.traced_output).encode_copy(&mut encoder, &self.targets.traced);
         }
         if outlines {
             self.accumulate.encode_tiles(

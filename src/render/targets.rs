@@ -1,6 +1,7 @@
 //! Per-image GPU storage: two G-buffers (the raster pass's, with its depth
-//! target and albedo, and the trace pass's), the float accumulation
-//! buffer, and an 8-bit sRGB target for capture.
+//! target and albedo, and the trace pass's, which it writes as buffers
+//! copied into its textures), the float accumulation buffer, and an 8-bit
+//! sRGB target for capture.
 
 use crate::gpu::{Gpu, GpuError};
 
@@ -20,13 +21,54 @@ pub struct GBuffer {
     pub id: wgpu::Texture,
 }
 
+pub use crate::gpu::twins::TRACED_ROW_ALIGN_PX;
+
+/// The trace pass's output, written as plain storage buffers (on lavapipe
+/// a storage-texture store costs several times a buffer store;
+/// docs/performance.md) and copied into the traced [`GBuffer`]'s textures,
+/// rows [`TRACED_ROW_ALIGN_PX`]-aligned, each texel in its texture's format.
+pub struct TracedOutput {
+    /// Per pixel the colour's four halves (as [`COLOR_FORMAT`] stores them).
+    pub color: wgpu::Buffer,
+    pub normal_depth: wgpu::Buffer,
+    pub id: wgpu::Buffer,
+    /// Pixels per row in the buffers.
+    pub row_px: u32,
+}
+
+impl TracedOutput {
+    /// Copies the buffers into `g`'s textures.
+    pub fn encode_copy(&self, encoder: &mut wgpu::CommandEncoder, g: &GBuffer) {
+        for (buffer, texture, bytes) in [
+            (&self.color, &g.color, 8),
+            (&self.normal_depth, &g.normal_depth, 16),
+            (&self.id, &g.id, 4),
+        ] {
+            encoder.copy_buffer_to_texture(
+                wgpu::TexelCopyBufferInfo {
+                    buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(self.row_px * bytes),
+                        rows_per_image: None,
+                    },
+                },
+                texture.as_image_copy(),
+                texture.size(),
+            );
+        }
+    }
+}
+
 pub struct Targets {
     pub width: u32,
     pub height: u32,
     /// Written by the raster pass.
     pub raster: GBuffer,
-    /// Written by the trace pass (hybrid and raytrace modes).
+    /// Written by the trace pass (hybrid and raytrace modes), through
+    /// [`TracedOutput`].
     pub traced: GBuffer,
+    pub traced_output: TracedOutput,
     /// See [`ALBEDO_FORMAT`].
     pub raster_albedo: wgpu::Texture,
     pub depth: wgpu::Texture,
@@ -91,7 +133,16 @@ impl Targets {
             });
         }
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-        let storage = wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING;
+        let storage = wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::TEXTURE_BINDING;
+        let row_px = width.next_multiple_of(TRACED_ROW_ALIGN_PX);
+        let output = |label, bytes: u32| {
+            gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: u64::from(row_px) * u64::from(height) * u64::from(bytes),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
         gpu.scoped(|| Targets {
             width,
             height,
@@ -133,6 +184,12 @@ impl Targets {
                     ID_FORMAT,
                     storage | wgpu::TextureUsages::COPY_SRC,
                 ),
+            },
+            traced_output: TracedOutput {
+                color: output("traced colour output", 8),
+                normal_depth: output("traced normal+depth output", 16),
+                id: output("traced id output", 4),
+                row_px,
             },
             depth: texture(
                 gpu,

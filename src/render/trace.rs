@@ -15,8 +15,7 @@ use std::collections::HashMap;
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{
-    read_only_storage_entry, read_write_storage_entry, storage_texture_entry, texture_entry,
-    uniform_entry,
+    read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::shader::Traversal;
 use crate::gpu::twins::{SHAPE_MESH, TRACE_WORKGROUP};
@@ -25,7 +24,7 @@ use crate::render::driver_accel::{self, DriverAccel};
 use crate::render::scene_buffers::{
     scene_layout, SceneBuffers, ShadingVariant, PASS_GROUP, SCENE_GROUP,
 };
-use crate::render::targets::{Targets, COLOR_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT};
+use crate::render::targets::Targets;
 use crate::render::RenderSettings;
 use crate::scene::{Light, Material, Scene};
 
@@ -38,9 +37,9 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
     read_write_storage_entry(1),                   // stats
     texture_entry(2, FLOAT),                       // raster_normal_depth
     texture_entry(3, wgpu::TextureSampleType::Uint), // raster_id
-    storage_texture_entry(4, COLOR_FORMAT),        // out_color
-    storage_texture_entry(5, NORMAL_DEPTH_FORMAT), // out_normal_depth
-    storage_texture_entry(6, ID_FORMAT),           // out_id
+    read_write_storage_entry(4),                   // out_color
+    read_write_storage_entry(5),                   // out_normal_depth
+    read_write_storage_entry(6),                   // out_id
     texture_entry(7, FLOAT),                       // raster_albedo
     read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // shadow_cull
     read_only_storage_entry(9, wgpu::ShaderStages::COMPUTE), // shadow_cells
@@ -310,15 +309,13 @@ impl TracePass {
             self.driver_group = None;
             return Err(e);
         }
-        let views = [
+        let [normal_depth, id, albedo] = [
             &targets.raster.normal_depth,
             &targets.raster.id,
-            &targets.traced.color,
-            &targets.traced.normal_depth,
-            &targets.traced.id,
             &targets.raster_albedo,
         ]
         .map(|t| t.create_view(&Default::default()));
+        let out = &targets.traced_output;
         let mut entries = vec![
             wgpu::BindGroupEntry {
                 binding: 0,
@@ -329,15 +326,18 @@ impl TracePass {
                 resource: self.stats.as_entire_binding(),
             },
         ];
-        entries.extend(
-            views
-                .iter()
-                .zip(2..)
-                .map(|(v, binding)| wgpu::BindGroupEntry {
-                    binding,
-                    resource: wgpu::BindingResource::TextureView(v),
-                }),
-        );
+        for (binding, view) in [(2, &normal_depth), (3, &id), (7, &albedo)] {
+            entries.push(wgpu::BindGroupEntry {
+                binding,
+                resource: wgpu::BindingResource::TextureView(view),
+            });
+        }
+        for (binding, buffer) in [(4, &out.color), (5, &out.normal_depth), (6, &out.id)] {
+            entries.push(wgpu::BindGroupEntry {
+                binding,
+                resource: buffer.as_entire_binding(),
+            });
+        }
         entries.extend([
             wgpu::BindGroupEntry {
                 binding: 8,
