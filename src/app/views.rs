@@ -176,6 +176,9 @@ impl ViewSlots {
         egui: &mut egui_wgpu::Renderer,
     ) -> Result<(), GpuError> {
         let count = model.layout.view_count();
+        // Whether views were drawing before this call: then a view shown
+        // for the first time is compiled ahead rather than at once.
+        let running = self.slots.iter().any(|s| s.renderer.is_some());
         for i in 0..self.slots.len() {
             if i >= count {
                 let slot = &mut self.slots[i];
@@ -197,7 +200,7 @@ impl ViewSlots {
                     ..model.settings.clone()
                 },
             };
-            self.update_renderer(gpu, i, want, model)?;
+            self.update_renderer(gpu, i, want, model, running)?;
         }
         Ok(())
     }
@@ -235,6 +238,7 @@ impl ViewSlots {
         i: usize,
         want: ViewInputs,
         model: &Model,
+        running: bool,
     ) -> Result<(), GpuError> {
         let timed = self.timed;
         if self.slots[i].inputs.as_ref() == Some(&want) {
@@ -242,7 +246,7 @@ impl ViewSlots {
             self.slots[i].warming = None;
             return Ok(());
         }
-        if !self.compiled_ahead(gpu, i, &want, model) {
+        if !self.compiled_ahead(gpu, i, &want, model, running) {
             return Ok(());
         }
         let slot = &mut self.slots[i];
@@ -276,42 +280,54 @@ impl ViewSlots {
 
     /// Whether slot `i` may apply `want` now: its renderer has the
     /// pipelines `want` draws with, or they have been compiled ahead
-    /// ([`crate::render::warmup`]), or the slot has no old image to show.
-    /// Otherwise it asks the warmer to compile them, and meanwhile the old
-    /// renderer follows the camera.
-    fn compiled_ahead(&mut self, gpu: &Gpu, i: usize, want: &ViewInputs, model: &Model) -> bool {
+    /// ([`crate::render::warmup`]). Otherwise it asks the warmer to compile
+    /// them, and meanwhile the old renderer follows the camera. A view
+    /// shown for the first time waits for its compilation too where views
+    /// were `running` before (a layout with more views); the app's first
+    /// views are built at once.
+    fn compiled_ahead(
+        &mut self,
+        gpu: &Gpu,
+        i: usize,
+        want: &ViewInputs,
+        model: &Model,
+        running: bool,
+    ) -> bool {
         let slot = &mut self.slots[i];
-        let (Some(renderer), Some(had)) = (&mut slot.renderer, &mut slot.inputs) else {
-            return true;
-        };
         // Built only where needed: a camera move asks no question of it.
         let scene = || {
             let mut scene = want.spec.apply(&model.scene);
             scene.camera = want.camera.clone();
             scene
         };
-        let settings_changed = had.settings != want.settings;
-        let scene_changed = had.scene_rev != want.scene_rev;
         // The pipelines the change will draw with, where the renderer can
-        // tell without applying it.
-        let keys = match (had.spec == want.spec, settings_changed, scene_changed) {
-            (false, _, _) | (true, true, true) => None,
-            (true, true, false) => renderer.keys_for_settings(&want.settings),
-            (true, false, true) => renderer.keys_for_edit(&scene()),
-            (true, false, false) => Some(renderer.pipeline_keys()),
-        };
-        if keys.is_some_and(|k| renderer.has_pipelines(&k)) {
-            slot.warming = None;
-            return true;
-        }
-        match slot.warming {
-            Some(w) if w.keys == keys => {
-                if self.warmer.finished(&w) {
-                    slot.warming = None;
-                    return true;
-                }
+        // tell without applying it, and whether it has them.
+        let (keys, has) = match (&slot.renderer, &slot.inputs) {
+            (Some(renderer), Some(had)) => {
+                let keys = match (
+                    had.spec == want.spec,
+                    had.settings != want.settings,
+                    had.scene_rev != want.scene_rev,
+                ) {
+                    (false, _, _) | (true, true, true) => None,
+                    (true, true, false) => renderer.keys_for_settings(&want.settings),
+                    (true, false, true) => renderer.keys_for_edit(&scene()),
+                    (true, false, false) => Some(renderer.pipeline_keys()),
+                };
+                (keys, keys.is_some_and(|k| renderer.has_pipelines(&k)))
             }
-            _ => match self
+            _ => (None, !running),
+        };
+        let warming = slot
+            .warming
+            .map(|w| (w.keys, w.keys == keys && self.warmer.finished(&w)));
+        match step(has, keys, warming) {
+            Step::Apply => {
+                slot.warming = None;
+                return true;
+            }
+            Step::Wait => {}
+            Step::Warm => match self
                 .warmer
                 .request(gpu, scene(), want.settings.clone(), keys)
             {
@@ -319,10 +335,12 @@ impl ViewSlots {
                 None => return true,
             },
         }
-        if had.camera != want.camera {
-            renderer.set_camera(want.camera.clone());
-            had.camera = want.camera.clone();
-            slot.shown = None;
+        if let (Some(renderer), Some(had)) = (&mut slot.renderer, &mut slot.inputs) {
+            if had.camera != want.camera {
+                renderer.set_camera(want.camera.clone());
+                had.camera = want.camera.clone();
+                slot.shown = None;
+            }
         }
         false
     }
@@ -457,5 +475,59 @@ impl ViewSlots {
             saved.push(path);
         }
         Ok(saved)
+    }
+}
+
+/// What a view does with a change this frame ([`ViewSlots::compiled_ahead`]).
+#[derive(Debug, PartialEq)]
+enum Step {
+    /// Apply it: the pipelines are there, or compiled ahead.
+    Apply,
+    /// Keep the old state: its warm-up is still compiling.
+    Wait,
+    /// Start a warm-up for it, and keep the old state.
+    Warm,
+}
+
+/// The step for a change whose pipelines are `keys` (where known), given
+/// whether the renderer `has` them and the slot's warm-up, if any: the
+/// keys it compiles and whether it has finished.
+fn step<K: PartialEq>(has: bool, keys: Option<K>, warming: Option<(Option<K>, bool)>) -> Step {
+    if has {
+        return Step::Apply;
+    }
+    match warming {
+        Some((k, finished)) if k == keys => {
+            if finished {
+                Step::Apply
+            } else {
+                Step::Wait
+            }
+        }
+        _ => Step::Warm,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{step, Step};
+
+    /// A change applies at once where the renderer has its pipelines, and
+    /// otherwise only once a warm-up of the same pipelines has finished; a
+    /// change to other pipelines starts a warm-up of its own, and one whose
+    /// pipelines only a new renderer could tell (`None`) waits for the
+    /// warm-up of such a change.
+    #[test]
+    fn a_change_waits_for_the_warm_up_of_its_own_pipelines() {
+        assert_eq!(step(true, Some(1), None), Step::Apply);
+        assert_eq!(step(true, Some(1), Some((Some(2), false))), Step::Apply);
+        assert_eq!(step(false, Some(1), None), Step::Warm);
+        assert_eq!(step(false, Some(1), Some((Some(1), false))), Step::Wait);
+        assert_eq!(step(false, Some(1), Some((Some(1), true))), Step::Apply);
+        assert_eq!(step(false, Some(1), Some((Some(2), true))), Step::Warm);
+        assert_eq!(step(false, Some(1), Some((None, true))), Step::Warm);
+        assert_eq!(step::<u8>(false, None, None), Step::Warm);
+        assert_eq!(step::<u8>(false, None, Some((None, false))), Step::Wait);
+        assert_eq!(step::<u8>(false, None, Some((None, true))), Step::Apply);
     }
 }
