@@ -122,19 +122,28 @@ impl Targets {
             }
         }
         let accum_bytes = u64::from(width) * u64::from(height) * 16;
-        let accum_limit = limits
+        let row_px = width.next_multiple_of(TRACED_ROW_ALIGN_PX);
+        // The traced normal + depth buffer, 16 bytes a pixel of its padded
+        // rows, is the largest storage buffer bound besides the accumulator.
+        let traced_bytes = u64::from(row_px) * u64::from(height) * 16;
+        let buffer_limit = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
-        if accum_bytes > accum_limit {
-            return Err(GpuError::Limit {
-                what: format!("accumulation buffer for {width}x{height} (bytes)"),
-                value: accum_bytes,
-                limit: accum_limit,
-            });
+        for (what, bytes) in [
+            ("accumulation buffer", accum_bytes),
+            ("traced normal+depth buffer", traced_bytes),
+        ] {
+            if bytes > buffer_limit {
+                return Err(GpuError::Limit {
+                    what: format!("{what} for {width}x{height} (bytes)"),
+                    value: bytes,
+                    limit: buffer_limit,
+                });
+            }
         }
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-        let storage = wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::TEXTURE_BINDING;
-        let row_px = width.next_multiple_of(TRACED_ROW_ALIGN_PX);
+        // The traced textures are filled by copies from TracedOutput.
+        let copied = wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::TEXTURE_BINDING;
         let output = |label, bytes: u32| {
             gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -167,14 +176,14 @@ impl Targets {
             },
             raster_albedo: texture(gpu, "raster albedo", width, height, ALBEDO_FORMAT, attach),
             traced: GBuffer {
-                color: texture(gpu, "traced colour", width, height, COLOR_FORMAT, storage),
+                color: texture(gpu, "traced colour", width, height, COLOR_FORMAT, copied),
                 normal_depth: texture(
                     gpu,
                     "traced normal+depth",
                     width,
                     height,
                     NORMAL_DEPTH_FORMAT,
-                    storage | wgpu::TextureUsages::COPY_SRC,
+                    copied | wgpu::TextureUsages::COPY_SRC,
                 ),
                 id: texture(
                     gpu,
@@ -182,7 +191,7 @@ impl Targets {
                     width,
                     height,
                     ID_FORMAT,
-                    storage | wgpu::TextureUsages::COPY_SRC,
+                    copied | wgpu::TextureUsages::COPY_SRC,
                 ),
             },
             traced_output: TracedOutput {
