@@ -13,7 +13,7 @@ use super::timing::FrameTimer;
 use crate::gpu::{Gpu, GpuError};
 use crate::render::warmup::{Warmer, Warming};
 use crate::render::{RenderSettings, Renderer};
-use crate::scene::Camera;
+use crate::scene::{Camera, Scene};
 use crate::view::ViewSpec;
 
 /// The number of view slots (the most views a layout shows).
@@ -27,6 +27,16 @@ struct ViewInputs {
     scene_rev: u64,
     camera: Camera,
     settings: RenderSettings,
+}
+
+impl ViewInputs {
+    /// The scene this view draws: the model's, through the view's spec, at
+    /// the view's camera.
+    fn scene(&self, model: &Model) -> Scene {
+        let mut scene = self.spec.apply(&model.scene);
+        scene.camera = self.camera.clone();
+        scene
+    }
 }
 
 /// One view slot: the texture the view is resolved into and, while the
@@ -256,17 +266,14 @@ impl ViewSlots {
                     renderer.set_settings(gpu, want.settings.clone())?;
                 }
                 if had.scene_rev != want.scene_rev {
-                    let mut scene = want.spec.apply(&model.scene);
-                    scene.camera = want.camera.clone();
-                    renderer.update_scene(gpu, scene)?;
+                    renderer.update_scene(gpu, want.scene(model))?;
                 } else if had.camera != want.camera {
                     renderer.set_camera(want.camera.clone());
                 }
             }
             _ => {
                 slot.renderer = None;
-                let mut renderer =
-                    Renderer::new(gpu, want.spec.apply(&model.scene), want.settings.clone())?;
+                let mut renderer = Renderer::new(gpu, want.scene(model), want.settings.clone())?;
                 if timed {
                     renderer.enable_pass_timing(gpu);
                 }
@@ -294,12 +301,6 @@ impl ViewSlots {
         running: bool,
     ) -> bool {
         let slot = &mut self.slots[i];
-        // Built only where needed: a camera move asks no question of it.
-        let scene = || {
-            let mut scene = want.spec.apply(&model.scene);
-            scene.camera = want.camera.clone();
-            scene
-        };
         // The pipelines the change will draw with, where the renderer can
         // tell without applying it, and whether it has them.
         let (keys, has) = match (&slot.renderer, &slot.inputs) {
@@ -311,7 +312,7 @@ impl ViewSlots {
                 ) {
                     (false, _, _) | (true, true, true) => None,
                     (true, true, false) => renderer.keys_for_settings(&want.settings),
-                    (true, false, true) => renderer.keys_for_edit(&scene()),
+                    (true, false, true) => renderer.keys_for_edit(&want.scene(model)),
                     (true, false, false) => Some(renderer.pipeline_keys()),
                 };
                 (keys, keys.is_some_and(|k| renderer.has_pipelines(&k)))
@@ -327,13 +328,15 @@ impl ViewSlots {
                 return true;
             }
             Step::Wait => {}
-            Step::Warm => match self
-                .warmer
-                .request(gpu, scene(), want.settings.clone(), keys)
-            {
-                Some(w) => slot.warming = Some(w),
-                None => return true,
-            },
+            Step::Warm => {
+                match self
+                    .warmer
+                    .request(gpu, want.scene(model), want.settings.clone(), keys)
+                {
+                    Some(w) => slot.warming = Some(w),
+                    None => return true,
+                }
+            }
         }
         if let (Some(renderer), Some(had)) = (&mut slot.renderer, &mut slot.inputs) {
             if had.camera != want.camera {

@@ -39,11 +39,12 @@ pub struct TracedOutput {
 impl TracedOutput {
     /// Copies the buffers into `g`'s textures.
     pub fn encode_copy(&self, encoder: &mut wgpu::CommandEncoder, g: &GBuffer) {
-        for (buffer, texture, bytes) in [
-            (&self.color, &g.color, 8),
-            (&self.normal_depth, &g.normal_depth, 16),
-            (&self.id, &g.id, 4),
+        for (buffer, texture) in [
+            (&self.color, &g.color),
+            (&self.normal_depth, &g.normal_depth),
+            (&self.id, &g.id),
         ] {
+            let bytes = texel_bytes(texture.format());
             encoder.copy_buffer_to_texture(
                 wgpu::TexelCopyBufferInfo {
                     buffer,
@@ -58,6 +59,11 @@ impl TracedOutput {
             );
         }
     }
+}
+
+/// Bytes a texel of `format` takes in a buffer copy.
+fn texel_bytes(format: wgpu::TextureFormat) -> u32 {
+    format.block_copy_size(None).unwrap_or(4)
 }
 
 pub struct Targets {
@@ -125,7 +131,8 @@ impl Targets {
         let row_px = width.next_multiple_of(TRACED_ROW_ALIGN_PX);
         // The traced normal + depth buffer, 16 bytes a pixel of its padded
         // rows, is the largest storage buffer bound besides the accumulator.
-        let traced_bytes = u64::from(row_px) * u64::from(height) * 16;
+        let traced_bytes =
+            u64::from(row_px) * u64::from(height) * u64::from(texel_bytes(NORMAL_DEPTH_FORMAT));
         let buffer_limit = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
@@ -144,10 +151,10 @@ impl Targets {
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
         // The traced textures are filled by copies from TracedOutput.
         let copied = wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::TEXTURE_BINDING;
-        let output = |label, bytes: u32| {
+        let output = |label, format| {
             gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
-                size: u64::from(row_px) * u64::from(height) * u64::from(bytes),
+                size: u64::from(row_px) * u64::from(height) * u64::from(texel_bytes(format)),
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             })
@@ -195,9 +202,9 @@ impl Targets {
                 ),
             },
             traced_output: TracedOutput {
-                color: output("traced colour output", 8),
-                normal_depth: output("traced normal+depth output", 16),
-                id: output("traced id output", 4),
+                color: output("traced colour output", COLOR_FORMAT),
+                normal_depth: output("traced normal+depth output", NORMAL_DEPTH_FORMAT),
+                id: output("traced id output", ID_FORMAT),
                 row_px,
             },
             depth: texture(

@@ -245,9 +245,14 @@ impl TracePass {
     /// Whether the pass has built `variant`'s pipeline on the current path
     /// (driver or software).
     pub fn has_variant(&self, variant: Variant) -> bool {
+        self.path_pipelines().contains_key(&variant)
+    }
+
+    /// The pipelines built so far on the current path (driver or software).
+    fn path_pipelines(&self) -> &HashMap<Variant, wgpu::ComputePipeline> {
         match (&self.driver_group, &self.driver) {
-            (Some(_), Some(v)) => v.pipelines.contains_key(&variant),
-            _ => self.pipelines.contains_key(&variant),
+            (Some(_), Some(v)) => &v.pipelines,
+            _ => &self.pipelines,
         }
     }
 
@@ -375,11 +380,7 @@ impl TracePass {
             label: Some("trace pass"),
             timestamp_writes,
         });
-        let pipeline = match (&self.driver_group, &self.driver) {
-            (Some(_), Some(v)) => v.pipelines.get(&self.variant),
-            _ => self.pipelines.get(&self.variant),
-        };
-        let Some(pipeline) = pipeline else {
+        let Some(pipeline) = self.path_pipelines().get(&self.variant) else {
             return;
         };
         pass.set_pipeline(pipeline);
