@@ -619,7 +619,10 @@ fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
 /// beside the accumulation's, wherever some outline reaches another pixel
 /// (1 px or wider), and none where every outline is narrower: the default
 /// scene as shipped, then with every outline 0.5 px wide. Raytrace mode
-/// runs no raster pass (nothing reads its targets there), hybrid both.
+/// runs no raster pass (nothing reads its targets there), hybrid both,
+/// except in a scene without triangle meshes, where hybrid traces
+/// everything (its raster pass would draw nothing) and must give raytrace
+/// mode's image, byte for byte.
 #[test]
 fn the_outline_marks_are_timed_as_a_pass_of_their_own() {
     let gpu = gpu();
@@ -658,6 +661,29 @@ fn the_outline_marks_are_timed_as_a_pass_of_their_own() {
     assert_eq!(
         pass_names(shipped.clone(), RenderMode::Raytrace),
         ["trace", "outline_tiles", "accumulate"]
+    );
+    let mut no_meshes = shipped.clone();
+    no_meshes
+        .instances
+        .retain(|i| !matches!(shipped.shapes[i.shape], celray::scene::Shape::Mesh(_)));
+    assert!(no_meshes.instances.len() >= 3 && no_meshes.instances.len() < shipped.instances.len());
+    assert_eq!(
+        pass_names(no_meshes.clone(), RenderMode::Hybrid),
+        ["trace", "outline_tiles", "accumulate"]
+    );
+    let image = |mode| {
+        let settings = RenderSettings {
+            width: 64,
+            height: 48,
+            spp: 2,
+            mode,
+            ..Default::default()
+        };
+        render(&gpu, no_meshes.clone(), settings).0
+    };
+    assert!(
+        image(RenderMode::Hybrid) == image(RenderMode::Raytrace),
+        "hybrid without meshes differs from raytrace"
     );
     let mut thin = shipped;
     for m in &mut thin.materials {

@@ -614,7 +614,7 @@ impl Renderer {
             max_outline_px: max_outline,
             seed: smp.seed,
             world_from_clip: world_from_clip.to_cols_array_2d(),
-            mode: s.mode.to_gpu(),
+            mode: self.primary_mode().to_gpu(),
             max_bounces: s.max_bounces,
             ray_epsilon: scene_radius * 1e-4,
             _pad: 0,
@@ -661,7 +661,7 @@ impl Renderer {
             uniforms.background[1],
             uniforms.background[2],
         ];
-        let mode = self.settings.mode;
+        let mode = self.primary_mode();
         let timed = self.timer.as_mut().is_some_and(|t| {
             t.last_timed = t.timer.begin();
             t.last_timed
@@ -673,7 +673,8 @@ impl Renderer {
         if let Some((pass, _)) = &moving {
             pass.encode_snapshot(&mut encoder, &self.targets, traced);
         }
-        // In raytrace mode nothing reads the raster targets: no pass at all.
+        // In raytrace mode (and hybrid without meshes, which runs as
+        // raytrace) nothing reads the raster targets: no pass at all.
         if mode != RenderMode::Raytrace {
             self.raster.encode(
                 &mut encoder,
@@ -917,6 +918,19 @@ impl Renderer {
     /// sample's outline search ran there (1) or was skipped (0). For tests.
     pub fn read_outline_tile_marks(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
         self.accumulate.read_tile_marks(gpu)
+    }
+
+    /// How this renderer's samples find primary visibility: the settings'
+    /// mode, except that hybrid mode with no triangle mesh to rasterize
+    /// traces everything as raytrace mode does (the same rays, the same
+    /// image) and skips a raster pass that would only clear its targets.
+    fn primary_mode(&self) -> RenderMode {
+        match self.settings.mode {
+            RenderMode::Hybrid if !self.buffers.draws.iter().any(|d| d.is_mesh) => {
+                RenderMode::Raytrace
+            }
+            mode => mode,
+        }
     }
 
     /// The G-buffer the accumulate pass reads in this mode.
