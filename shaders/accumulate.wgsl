@@ -7,9 +7,8 @@
 
 // Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
 @group(1) @binding(0) var<uniform> frame: FrameUniforms;
-@group(1) @binding(1) var color_tex: texture_2d<f32>;
-@group(1) @binding(2) var normal_depth_tex: texture_2d<f32>;
-@group(1) @binding(3) var id_tex: texture_2d<u32>;
+// Bindings 1-3 and 6-8: the G-buffer (lib/gbuffer.wgsl).
+#include "lib/gbuffer.wgsl"
 @group(1) @binding(4) var<storage, read_write> accum: array<vec4<f32>>;
 // From shaders/outline_tiles.wgsl, run just before: 1 where a pixel of
 // this workgroup's tile may take an outline (an outlined object in reach,
@@ -44,9 +43,9 @@ fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
         var material = 0u;
         var width2 = -1.0;
         if all(q >= vec2<i32>(0)) && all(q < size) {
-            id = textureLoad(id_tex, q, 0).x;
+            id = gbuffer_id(q);
             if id != 0u {
-                nd = textureLoad(normal_depth_tex, q, 0);
+                nd = gbuffer_normal_depth(q);
                 material = instances[id - 1u].material;
                 let width = materials[material].outline_width_px;
                 width2 = width * width;
@@ -131,7 +130,7 @@ fn main(
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
         return;
     }
-    var c = textureLoad(color_tex, vec2<i32>(gid.xy), 0).rgb;
+    var c = gbuffer_color(vec2<i32>(gid.xy));
     if outlined {
         let o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
         c = mix(c, o.rgb, o.a);

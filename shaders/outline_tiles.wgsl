@@ -34,11 +34,12 @@
 
 // Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
 @group(1) @binding(0) var<uniform> frame: FrameUniforms;
-@group(1) @binding(1) var id_tex: texture_2d<u32>;
-@group(1) @binding(2) var normal_depth_tex: texture_2d<f32>;
+// Bindings 2, 3, 7 and 8: the G-buffer's normal + depth and ids
+// (lib/gbuffer.wgsl).
+#include "lib/gbuffer.wgsl"
 // One word per accumulate workgroup, row by row: 1 where the tile may
 // take an outline.
-@group(1) @binding(3) var<storage, read_write> tile_marks: array<u32>;
+@group(1) @binding(4) var<storage, read_write> tile_marks: array<u32>;
 
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP (the tile's
 // side), MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP and DEPTH_JUMP.
@@ -81,7 +82,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // proving for an outlined object: a tile that is all one object
     // without an outline holds no source, and way 1 skips it (reading ids
     // only).
-    let object = textureLoad(id_tex, lo, 0).x;
+    let object = gbuffer_id(lo);
     var last_id = object;
     var last_width = 0.0;
     if object != 0u {
@@ -92,7 +93,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var y = lo.y; y < hi.y; y++) {
         for (var x = lo.x; x < hi.x; x++) {
             let q = vec2<i32>(x, y);
-            let id = textureLoad(id_tex, q, 0).x;
+            let id = gbuffer_id(q);
             quiet = quiet && id == object;
             if id != 0u && !any_source {
                 if id != last_id {
@@ -102,7 +103,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 any_source = last_width >= 1.0;
             }
             if quiet {
-                let nd = textureLoad(normal_depth_tex, q, 0);
+                let nd = gbuffer_normal_depth(q);
                 // Each texel on its own (it also meets the search as p = q):
                 // in front of the eye, its normal at least 0.949 long. The
                 // left and upper neighbours passed this when they were read.
@@ -111,7 +112,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     quiet = quiet && smooth_pair(nd, left, depth_step, cos_step);
                 }
                 if y > lo.y {
-                    let up = textureLoad(normal_depth_tex, q - vec2<i32>(0, 1), 0);
+                    let up = gbuffer_normal_depth(q - vec2<i32>(0, 1));
                     quiet = quiet && smooth_pair(nd, up, depth_step, cos_step);
                 }
                 left = nd;

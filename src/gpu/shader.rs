@@ -131,6 +131,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         "lib/texture.wgsl",
         include_str!("../../shaders/lib/texture.wgsl"),
     ),
+    (
+        "lib/gbuffer.wgsl",
+        include_str!("../../shaders/lib/gbuffer.wgsl"),
+    ),
     ("raster.wgsl", include_str!("../../shaders/raster.wgsl")),
     (
         "accumulate.wgsl",

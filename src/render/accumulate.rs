@@ -7,6 +7,10 @@
 //! "outline_tiles") marks the workgroup tiles where some pixel may take
 //! an outline (an outlined object in reach that is not provably the smooth
 //! inside of one object), and the accumulate kernel searches only those.
+//! Both read the G-buffer through `shaders/lib/gbuffer.wgsl`: one pipeline
+//! each for the raster pass's textures and one for the trace pass's buffers
+//! (override constant `TRACED_GBUFFER`), so the trace pass's output is read
+//! where it was written, with no copy between.
 
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
@@ -14,41 +18,50 @@ use crate::gpu::layout::{
 use crate::gpu::twins::{ACCUMULATE_WORKGROUP, OUTLINE_TILES_WORKGROUP};
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
-use crate::render::targets::{GBuffer, Targets};
+use crate::render::targets::Targets;
 
 const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
 
 /// Group 1 of the accumulate pass, binding by binding as
 /// `shaders/accumulate.wgsl` declares it.
-pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 6] = [
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 9] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     texture_entry(1, FLOAT),                       // color_tex
     texture_entry(2, FLOAT),                       // normal_depth_tex
     texture_entry(3, wgpu::TextureSampleType::Uint), // id_tex
     read_write_storage_entry(4),                   // accum
     read_only_storage_entry(5, wgpu::ShaderStages::COMPUTE), // tile_marks
+    read_only_storage_entry(6, wgpu::ShaderStages::COMPUTE), // traced_color
+    read_only_storage_entry(7, wgpu::ShaderStages::COMPUTE), // traced_normal_depth
+    read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // traced_id
 ];
 
 /// Group 1 of the tile-marking dispatch, binding by binding as
 /// `shaders/outline_tiles.wgsl` declares it.
-pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 4] = [
+/// It holds the whole G-buffer of lib/gbuffer.wgsl, the colour unread.
+pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 8] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
-    texture_entry(1, wgpu::TextureSampleType::Uint), // id_tex
+    texture_entry(1, FLOAT),                       // color_tex
     texture_entry(2, FLOAT),                       // normal_depth_tex
-    read_write_storage_entry(3),                   // tile_marks
+    texture_entry(3, wgpu::TextureSampleType::Uint), // id_tex
+    read_write_storage_entry(4),                   // tile_marks
+    read_only_storage_entry(6, wgpu::ShaderStages::COMPUTE), // traced_color
+    read_only_storage_entry(7, wgpu::ShaderStages::COMPUTE), // traced_normal_depth
+    read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // traced_id
 ];
 
 pub struct AccumulatePass {
-    pipeline: wgpu::ComputePipeline,
+    /// Reading the raster G-buffer, then the traced one.
+    pipelines: [wgpu::ComputePipeline; 2],
     layout: wgpu::BindGroupLayout,
-    tiles_pipeline: wgpu::ComputePipeline,
+    tiles_pipelines: [wgpu::ComputePipeline; 2],
     tiles_layout: wgpu::BindGroupLayout,
     /// The scene's shared group.
     scene_group: Option<wgpu::BindGroup>,
-    /// Reading the raster G-buffer, then the traced one: the accumulate
-    /// groups and the tile-marking groups.
-    bind_groups: Option<[wgpu::BindGroup; 2]>,
-    tiles_groups: Option<[wgpu::BindGroup; 2]>,
+    /// The accumulate group and the tile-marking group, each with both
+    /// G-buffers bound: the pipeline reads one.
+    bind_group: Option<wgpu::BindGroup>,
+    tiles_group: Option<wgpu::BindGroup>,
     /// One word per tile: 1 where the accumulate kernel searched for
     /// outlines in the last sample (when the scene has outlines).
     marks: Option<wgpu::Buffer>,
@@ -82,10 +95,13 @@ impl AccumulatePass {
                             bind_group_layouts: &[Some(&scene_layout), Some(&layout)],
                             immediate_size: 0,
                         });
-                let pipeline =
+                let pipeline = |traced: bool| {
                     gpu.device
                         .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                            label: Some(&format!("{name} pipeline")),
+                            label: Some(&format!(
+                                "{name} pipeline ({} G-buffer)",
+                                if traced { "traced" } else { "raster" }
+                            )),
                             layout: Some(&pipeline_layout),
                             module,
                             entry_point: Some("main"),
@@ -96,30 +112,31 @@ impl AccumulatePass {
                             // over it and a barrier, marked or not. (The
                             // outline marks have no workgroup memory.)
                             compilation_options: wgpu::PipelineCompilationOptions {
+                                constants: &[("TRACED_GBUFFER", f64::from(u8::from(traced)))],
                                 zero_initialize_workgroup_memory: false,
-                                ..Default::default()
                             },
                             cache: None,
-                        });
-                (pipeline, layout)
+                        })
+                };
+                ([pipeline(false), pipeline(true)], layout)
             };
-            let (pipeline, layout) = kernel("accumulate", &PASS_LAYOUT, &module);
-            let (tiles_pipeline, tiles_layout) =
+            let (pipelines, layout) = kernel("accumulate", &PASS_LAYOUT, &module);
+            let (tiles_pipelines, tiles_layout) =
                 kernel("outline tiles", &TILES_LAYOUT, &tiles_module);
             AccumulatePass {
-                pipeline,
+                pipelines,
                 layout,
-                tiles_pipeline,
+                tiles_pipelines,
                 tiles_layout,
                 scene_group: None,
-                bind_groups: None,
-                tiles_groups: None,
+                bind_group: None,
+                tiles_group: None,
                 marks: None,
             }
         })
     }
 
-    /// Bind groups reading the raster G-buffer (raster mode) and the
+    /// Bind groups holding the raster G-buffer (raster mode) and the
     /// traced one (hybrid and raytrace modes), with the tile marks sized
     /// to the targets.
     pub fn prepare(
@@ -150,48 +167,43 @@ impl AccumulatePass {
                 entries: &entries,
             })
         };
-        let accumulate = |label, g: &GBuffer| {
-            let (color, normal_depth, id) = (
-                g.color.create_view(&Default::default()),
-                g.normal_depth.create_view(&Default::default()),
-                g.id.create_view(&Default::default()),
-            );
-            group(
-                label,
-                &self.layout,
-                &[
-                    (0, frame.as_entire_binding()),
-                    (1, wgpu::BindingResource::TextureView(&color)),
-                    (2, wgpu::BindingResource::TextureView(&normal_depth)),
-                    (3, wgpu::BindingResource::TextureView(&id)),
-                    (4, targets.accum.as_entire_binding()),
-                    (5, marks.as_entire_binding()),
-                ],
-            )
-        };
-        let marking = |label, g: &GBuffer| {
-            let id = g.id.create_view(&Default::default());
-            let normal_depth = g.normal_depth.create_view(&Default::default());
-            group(
-                label,
-                &self.tiles_layout,
-                &[
-                    (0, frame.as_entire_binding()),
-                    (1, wgpu::BindingResource::TextureView(&id)),
-                    (2, wgpu::BindingResource::TextureView(&normal_depth)),
-                    (3, marks.as_entire_binding()),
-                ],
-            )
-        };
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (raster, traced) = (&targets.raster, &targets.traced_output);
+        let (color, normal_depth, id) = (
+            view(&raster.color),
+            view(&raster.normal_depth),
+            view(&raster.id),
+        );
         self.scene_group = Some(scene.bind_group.clone());
-        self.bind_groups = Some([
-            accumulate("accumulate bind group (raster)", &targets.raster),
-            accumulate("accumulate bind group (traced)", &targets.traced),
-        ]);
-        self.tiles_groups = Some([
-            marking("outline tiles bind group (raster)", &targets.raster),
-            marking("outline tiles bind group (traced)", &targets.traced),
-        ]);
+        self.bind_group = Some(group(
+            "accumulate bind group",
+            &self.layout,
+            &[
+                (0, frame.as_entire_binding()),
+                (1, wgpu::BindingResource::TextureView(&color)),
+                (2, wgpu::BindingResource::TextureView(&normal_depth)),
+                (3, wgpu::BindingResource::TextureView(&id)),
+                (4, targets.accum.as_entire_binding()),
+                (5, marks.as_entire_binding()),
+                (6, traced.color.as_entire_binding()),
+                (7, traced.normal_depth.as_entire_binding()),
+                (8, traced.id.as_entire_binding()),
+            ],
+        ));
+        self.tiles_group = Some(group(
+            "outline tiles bind group",
+            &self.tiles_layout,
+            &[
+                (0, frame.as_entire_binding()),
+                (1, wgpu::BindingResource::TextureView(&color)),
+                (2, wgpu::BindingResource::TextureView(&normal_depth)),
+                (3, wgpu::BindingResource::TextureView(&id)),
+                (4, marks.as_entire_binding()),
+                (6, traced.color.as_entire_binding()),
+                (7, traced.normal_depth.as_entire_binding()),
+                (8, traced.id.as_entire_binding()),
+            ],
+        ));
         self.marks = Some(marks);
     }
 
@@ -219,12 +231,11 @@ impl AccumulatePass {
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let (tiles_x, tiles_y) = tiles(targets);
-        let groups = self.tiles_groups.as_ref();
         self.dispatch(
             encoder,
             "outline tiles pass",
-            &self.tiles_pipeline,
-            groups.map(|g| &g[usize::from(traced)]),
+            &self.tiles_pipelines[usize::from(traced)],
+            self.tiles_group.as_ref(),
             ((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1),
             timestamp_writes,
         );
@@ -240,12 +251,11 @@ impl AccumulatePass {
         traced: bool,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        let groups = self.bind_groups.as_ref();
         self.dispatch(
             encoder,
             "accumulate pass",
-            &self.pipeline,
-            groups.map(|g| &g[usize::from(traced)]),
+            &self.pipelines[usize::from(traced)],
+            self.bind_group.as_ref(),
             tiles(targets),
             timestamp_writes,
         );

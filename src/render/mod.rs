@@ -695,7 +695,11 @@ impl Renderer {
                 &self.targets,
                 timer.as_mut().and_then(|t| t.timer.compute_writes(t.trace)),
             );
-            (self.targets.traced_output).encode_copy(&mut encoder, &self.targets.traced);
+            // The accumulate pass reads the trace pass's buffers; the
+            // reproject pass reads textures.
+            if moving.is_some() {
+                (self.targets.traced_output).encode_copy(&mut encoder, &self.targets.traced);
+            }
         }
         if outlines {
             self.accumulate.encode_tiles(
@@ -903,14 +907,14 @@ impl Renderer {
     /// (see [`SceneBuffers::instance_order`]). For tests (picking is
     /// [`Renderer::pick`], on the CPU).
     pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
-        let bytes = readback::read_texture(gpu, &self.gbuffer().id, 4)?;
+        let bytes = readback::read_texture(gpu, &self.gbuffer(gpu).id, 4)?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
     /// The G-buffer's normal (xyz, world space) and view depth (w) per
     /// pixel, as the accumulate pass's outline search reads them. For tests.
     pub fn read_normal_depth(&self, gpu: &Gpu) -> Result<Vec<[f32; 4]>, GpuError> {
-        let bytes = readback::read_texture(gpu, &self.gbuffer().normal_depth, 16)?;
+        let bytes = readback::read_texture(gpu, &self.gbuffer(gpu).normal_depth, 16)?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
@@ -933,12 +937,21 @@ impl Renderer {
         }
     }
 
-    /// The G-buffer the accumulate pass reads in this mode.
-    fn gbuffer(&self) -> &targets::GBuffer {
+    /// The G-buffer the accumulate pass read in the last sample, as
+    /// textures: in hybrid and raytrace mode the trace pass's buffers are
+    /// first copied into the traced textures (the samples skip that copy
+    /// unless a reproject pass follows).
+    fn gbuffer(&self, gpu: &Gpu) -> &targets::GBuffer {
         if self.settings.mode == RenderMode::Raster {
-            &self.targets.raster
-        } else {
-            &self.targets.traced
+            return &self.targets.raster;
         }
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("traced G-buffer copy"),
+            });
+        (self.targets.traced_output).encode_copy(&mut encoder, &self.targets.traced);
+        gpu.queue.submit([encoder.finish()]);
+        &self.targets.traced
     }
 }

@@ -198,19 +198,25 @@ impl ReprojectPass {
         let Some(hist) = &self.history else {
             return;
         };
-        let g = if traced {
-            &targets.traced
-        } else {
-            &targets.raster
-        };
         encoder.copy_buffer_to_buffer(&targets.accum, 0, &hist.color, 0, targets.accum.size());
-        let extent = wgpu::Extent3d {
-            width: hist.width,
-            height: hist.height,
-            depth_or_array_layers: 1,
-        };
-        for (from, to) in [(&g.normal_depth, &hist.normal_depth), (&g.id, &hist.id)] {
-            encoder.copy_texture_to_texture(from.as_image_copy(), to.as_image_copy(), extent);
+        if traced {
+            // From the trace pass's buffers: the traced textures hold the
+            // last frame only where a reproject pass followed it.
+            (targets.traced_output).encode_copy_normal_depth_id(
+                encoder,
+                &hist.normal_depth,
+                &hist.id,
+            );
+        } else {
+            let extent = wgpu::Extent3d {
+                width: hist.width,
+                height: hist.height,
+                depth_or_array_layers: 1,
+            };
+            let g = &targets.raster;
+            for (from, to) in [(&g.normal_depth, &hist.normal_depth), (&g.id, &hist.id)] {
+                encoder.copy_texture_to_texture(from.as_image_copy(), to.as_image_copy(), extent);
+            }
         }
         encoder.clear_buffer(&targets.accum, 0, None);
     }

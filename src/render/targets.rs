@@ -25,8 +25,11 @@ pub use crate::gpu::twins::TRACED_ROW_ALIGN_PX;
 
 /// The trace pass's output, written as plain storage buffers (on lavapipe
 /// a storage-texture store costs several times a buffer store;
-/// docs/performance.md) and copied into the traced [`GBuffer`]'s textures,
-/// rows [`TRACED_ROW_ALIGN_PX`]-aligned, each texel in its texture's format.
+/// docs/performance.md), rows [`TRACED_ROW_ALIGN_PX`]-aligned, each texel
+/// in its texture's format. The outline marks and the accumulate pass read
+/// them as they are (`shaders/lib/gbuffer.wgsl`); they are copied into the
+/// traced [`GBuffer`]'s textures only for the reproject pass and the
+/// G-buffer read-backs.
 pub struct TracedOutput {
     /// Per pixel the colour's four halves (as [`COLOR_FORMAT`] stores them).
     pub color: wgpu::Buffer,
@@ -39,11 +42,36 @@ pub struct TracedOutput {
 impl TracedOutput {
     /// Copies the buffers into `g`'s textures.
     pub fn encode_copy(&self, encoder: &mut wgpu::CommandEncoder, g: &GBuffer) {
-        for (buffer, texture) in [
-            (&self.color, &g.color),
-            (&self.normal_depth, &g.normal_depth),
-            (&self.id, &g.id),
-        ] {
+        self.copy_into(
+            encoder,
+            [
+                (&self.color, &g.color),
+                (&self.normal_depth, &g.normal_depth),
+                (&self.id, &g.id),
+            ],
+        );
+    }
+
+    /// Copies the normal + depth and the id buffers into two textures of
+    /// their formats and the targets' size (a reprojection's history).
+    pub fn encode_copy_normal_depth_id(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        normal_depth: &wgpu::Texture,
+        id: &wgpu::Texture,
+    ) {
+        self.copy_into(
+            encoder,
+            [(&self.normal_depth, normal_depth), (&self.id, id)],
+        );
+    }
+
+    fn copy_into<'a>(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        pairs: impl IntoIterator<Item = (&'a wgpu::Buffer, &'a wgpu::Texture)>,
+    ) {
+        for (buffer, texture) in pairs {
             let bytes = texel_bytes(texture.format());
             encoder.copy_buffer_to_texture(
                 wgpu::TexelCopyBufferInfo {

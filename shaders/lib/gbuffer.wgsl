@@ -1,0 +1,49 @@
+// The G-buffer the accumulate pass and the outline marks read, at pixel q
+// (inside the image): in raster mode the raster pass's textures; in hybrid
+// and raytrace mode the storage buffers the trace pass wrote
+// (src/render/targets.rs, TracedOutput: rows every TRACED_ROW_ALIGN_PX
+// pixels, each texel in its texture's format, the colour as four halves),
+// read where they are rather than first copied into textures. Which one is
+// fixed per pipeline, so a kernel holds only its own reads.
+//
+// Includes: after `frame` (group 1, binding 0). Group 1 bindings 1-3 and
+// 6-8 are these; a kernel binds those it reads.
+
+override TRACED_GBUFFER: bool = false;
+
+@group(1) @binding(1) var color_tex: texture_2d<f32>;
+@group(1) @binding(2) var normal_depth_tex: texture_2d<f32>;
+@group(1) @binding(3) var id_tex: texture_2d<u32>;
+@group(1) @binding(6) var<storage, read> traced_color: array<vec2<u32>>;
+@group(1) @binding(7) var<storage, read> traced_normal_depth: array<vec4<f32>>;
+@group(1) @binding(8) var<storage, read> traced_id: array<u32>;
+
+fn traced_index(q: vec2<i32>) -> u32 {
+    let row_px = (frame.size_px.x + TRACED_ROW_ALIGN_PX - 1u) & ~(TRACED_ROW_ALIGN_PX - 1u);
+    return u32(q.y) * row_px + u32(q.x);
+}
+
+// Linear colour (a half-float texel: its halves widen exactly either way).
+fn gbuffer_color(q: vec2<i32>) -> vec3<f32> {
+    if TRACED_GBUFFER {
+        let c = traced_color[traced_index(q)];
+        return vec3<f32>(unpack2x16float(c.x), unpack2x16float(c.y).x);
+    }
+    return textureLoad(color_tex, q, 0).rgb;
+}
+
+// World normal (xyz) and view depth (w).
+fn gbuffer_normal_depth(q: vec2<i32>) -> vec4<f32> {
+    if TRACED_GBUFFER {
+        return traced_normal_depth[traced_index(q)];
+    }
+    return textureLoad(normal_depth_tex, q, 0);
+}
+
+// 0 for the background, else the GPU instance + 1.
+fn gbuffer_id(q: vec2<i32>) -> u32 {
+    if TRACED_GBUFFER {
+        return traced_id[traced_index(q)];
+    }
+    return textureLoad(id_tex, q, 0).x;
+}
