@@ -414,9 +414,11 @@ fn toggling_a_lights_shadows_takes_effect() {
 /// off again keeps that variant (an edit keeps testing the lights the
 /// pipeline tests), which a fresh renderer of that scene would not choose,
 /// so the warm-up is handed the keys and must draw with them; a bounce
-/// count changes the trace variant (the ball reflects); a switch from
-/// hybrid to raster may change what rays walk, and an added light uploads
-/// the scene again, so neither is predicted.
+/// count changes the trace variant (the ball reflects); temporal
+/// reprojection adds the reproject pass, which runs only on a moving
+/// frame, so the warm-up must draw one; a switch from hybrid to raster may
+/// change what rays walk, and an added light uploads the scene again, so
+/// neither is predicted.
 #[test]
 fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
     use celray::render::warmup::Warmer;
@@ -481,8 +483,36 @@ fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
     };
     let flat = r.keys_for_settings(&no_bounces).expect("same structures");
     assert_ne!(flat, off, "no reflection code without bounces");
-    r.set_settings(&gpu, no_bounces).unwrap();
+    r.set_settings(&gpu, no_bounces.clone()).unwrap();
     assert_eq!(r.pipeline_keys(), flat);
+
+    let temporal = RenderSettings {
+        temporal: celray::render::Temporal::Reproject,
+        ..no_bounces
+    };
+    let reprojecting = r.keys_for_settings(&temporal).expect("same structures");
+    assert_ne!(reprojecting, flat, "reprojection adds a pass");
+    assert!(
+        !r.has_pipelines(&reprojecting),
+        "not built before the switch"
+    );
+    let job = warmer
+        .request(&gpu, scene.clone(), temporal.clone(), Some(reprojecting))
+        .expect("a warm-up thread");
+    let drew = loop {
+        if let Some(outcome) = warmer.outcome(&job) {
+            break outcome.unwrap_or_else(|e| panic!("warm-up failed: {e}"));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    assert_eq!(
+        drew,
+        Some(reprojecting),
+        "the warm-up draws a moving frame, through the reproject pass"
+    );
+    r.set_settings(&gpu, temporal).unwrap();
+    assert_eq!(r.pipeline_keys(), reprojecting);
+    assert!(r.has_pipelines(&reprojecting));
     let raster = settings(&scene, RenderMode::Raster);
     assert_eq!(r.keys_for_settings(&raster), None);
     let mut more_lights = scene.clone();

@@ -65,14 +65,16 @@ pub const PASS_NAMES: [&str; 5] = [
 ];
 
 /// The pipelines a renderer draws with, by their cache keys: the raster
-/// and trace variants and whether rays walk the driver's structures. A
-/// change that needs new ones pays for their compilation on its first
-/// frame ([`Renderer::has_pipelines`]).
+/// and trace variants, whether rays walk the driver's structures, and
+/// whether moving frames run the reproject pass (temporal reprojection
+/// on). A change that needs new ones pays for their compilation on its
+/// first frame ([`Renderer::has_pipelines`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct PipelineKeys {
     raster: raster::RasterVariant,
     trace: trace::Variant,
     driver: bool,
+    reproject: bool,
 }
 
 /// GPU time of a sample's passes: one timer, one span per pass.
@@ -417,6 +419,7 @@ impl Renderer {
             raster: self.raster.variant(),
             trace: self.trace.variant(),
             driver: self.trace.uses_driver(),
+            reproject: self.settings.temporal != Temporal::Off,
         }
     }
 
@@ -427,6 +430,7 @@ impl Renderer {
         keys.driver == self.trace.uses_driver()
             && self.raster.has_variant(keys.raster)
             && self.trace.has_variant(keys.trace)
+            && (!keys.reproject || self.reproject.is_some())
     }
 
     /// The pipelines [`Renderer::update_scene`]`(scene)` would draw with,
@@ -443,6 +447,7 @@ impl Renderer {
             raster: RasterPass::variant_of(scene, &self.buffers),
             trace: self.trace.variant_for_edit(want),
             driver: self.trace.uses_driver(),
+            reproject: self.settings.temporal != Temporal::Off,
         }
     }
 
@@ -454,6 +459,7 @@ impl Renderer {
         (settings.accel == self.settings.accel && raster(settings) == raster(&self.settings)).then(
             || PipelineKeys {
                 trace: trace::Variant::of(&self.scene, &self.buffers, settings),
+                reproject: settings.temporal != Temporal::Off,
                 ..self.pipeline_keys()
             },
         )

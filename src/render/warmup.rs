@@ -161,14 +161,24 @@ impl Drop for Warmer {
     }
 }
 
-/// One sample of the job's scene at the warm-up size, with its pipelines;
-/// returns the pipelines it drew with.
+/// One sample of the job's scene at the warm-up size, with its pipelines,
+/// and with temporal reprojection on a second one from a moved camera (a
+/// moving frame, which runs the reproject pass); returns the pipelines it
+/// drew with.
 fn warm(gpu: &Gpu, job: &Job) -> Result<PipelineKeys, GpuError> {
     let mut renderer = Renderer::new(gpu, job.scene.clone(), job.settings.clone())?;
     if let Some(keys) = &job.keys {
         renderer.use_pipelines(gpu, keys)?;
     }
     renderer.render_sample(gpu)?;
+    let mut drew = renderer.pipeline_keys();
+    if drew.reproject {
+        let mut camera = job.scene.camera.clone();
+        camera.eye += (camera.target - camera.eye) * 0.01;
+        renderer.set_camera(camera);
+        renderer.render_sample(gpu)?;
+        drew.reproject = renderer.last_frame_moved();
+    }
     gpu.wait_idle()?;
-    Ok(renderer.pipeline_keys())
+    Ok(drew)
 }
