@@ -153,9 +153,8 @@ impl LiveApp {
         };
         let previous = self.gpu.shader_overrides();
         self.gpu.set_shader_overrides(Some(overrides));
-        match self.views.rebuilt_renderers(&self.gpu) {
-            Ok(rebuilt) => {
-                self.views.replace_renderers(rebuilt);
+        match self.views.reload_renderers(&self.gpu) {
+            Ok(()) => {
                 self.model.error = None;
                 self.model.status = Some(format!("shaders reloaded from {}", dir.display()));
             }

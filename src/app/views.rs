@@ -53,6 +53,10 @@ struct ViewSlot {
     /// A change waiting for its pipelines to compile ahead
     /// ([`crate::render::warmup`]); meanwhile the renderer draws the old state.
     warming: Option<Warming>,
+    /// A renderer rebuilt with reloaded shaders, waiting for its pipelines
+    /// to compile ahead ([`ViewSlots::reload_renderers`]); meanwhile the
+    /// old renderer draws with the old shaders.
+    reloaded: Option<(Renderer, Warming)>,
 }
 
 /// The view slots and what they share.
@@ -122,6 +126,7 @@ impl ViewSlots {
                     inputs: None,
                     shown: None,
                     warming: None,
+                    reloaded: None,
                 }
             })
             .collect();
@@ -196,6 +201,7 @@ impl ViewSlots {
                 slot.inputs = None;
                 slot.shown = None;
                 slot.warming = None;
+                slot.reloaded = None;
                 continue;
             }
             let size = self.sizes.get(i).copied().unwrap_or((1, 1));
@@ -211,7 +217,41 @@ impl ViewSlots {
                 },
             };
             self.update_renderer(gpu, i, want, model, running)?;
+            self.swap_reloaded(gpu, i)?;
         }
+        Ok(())
+    }
+
+    /// Puts slot `i`'s reloaded renderer in place once its warm-up has
+    /// finished, brought up to what the old one drew meanwhile (settings,
+    /// scene and camera changed since the reload).
+    fn swap_reloaded(&mut self, gpu: &Gpu, i: usize) -> Result<(), GpuError> {
+        let slot = &mut self.slots[i];
+        let Some((_, w)) = &slot.reloaded else {
+            return Ok(());
+        };
+        if !self.warmer.finished(w) {
+            return Ok(());
+        }
+        let Some((mut new, _)) = slot.reloaded.take() else {
+            return Ok(());
+        };
+        if let Some(old) = &slot.renderer {
+            if new.settings() != old.settings() {
+                new.set_settings(gpu, old.settings().clone())?;
+            }
+            if new.scene() != old.scene() {
+                let mut same_but_camera = old.scene().clone();
+                same_but_camera.camera = new.scene().camera.clone();
+                if &same_but_camera == new.scene() {
+                    new.set_camera(old.scene().camera.clone());
+                } else {
+                    new.update_scene(gpu, old.scene().clone())?;
+                }
+            }
+        }
+        slot.renderer = Some(new);
+        slot.shown = None;
         Ok(())
     }
 
@@ -260,6 +300,10 @@ impl ViewSlots {
             return Ok(());
         }
         let slot = &mut self.slots[i];
+        if !matches!(&slot.inputs, Some(had) if had.spec == want.spec) {
+            // A new renderer is built below, with the current shaders.
+            slot.reloaded = None;
+        }
         match (&mut slot.renderer, &slot.inputs) {
             (Some(renderer), Some(had)) if had.spec == want.spec => {
                 if had.settings != want.settings {
@@ -348,9 +392,13 @@ impl ViewSlots {
         false
     }
 
-    /// How many views wait for a change's pipelines to compile.
+    /// How many views wait for a change's (or reloaded shaders')
+    /// pipelines to compile.
     pub fn warming(&self) -> usize {
-        self.slots.iter().filter(|s| s.warming.is_some()).count()
+        self.slots
+            .iter()
+            .filter(|s| s.warming.is_some() || s.reloaded.is_some())
+            .count()
     }
 
     /// Renders up to `per_view` samples into every shown view that has not
@@ -414,32 +462,47 @@ impl ViewSlots {
         failed.map_or(Ok(()), Err)
     }
 
-    /// New renderers for every shown view, built with the device's current
-    /// shaders; on an error, none (the old ones stay).
-    pub fn rebuilt_renderers(&self, gpu: &Gpu) -> Result<Vec<Option<Renderer>>, GpuError> {
-        self.slots
+    /// Rebuilds every shown view's renderer with the device's current
+    /// shaders (after a hot reload). The new renderers' pipelines are
+    /// compiled ahead ([`crate::render::warmup`]) while the old renderers
+    /// keep drawing; [`ViewSlots::sync`] puts each in place when its
+    /// warm-up has finished (at once where there is no warm-up thread). On
+    /// an error, nothing changes.
+    pub fn reload_renderers(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
+        let timed = self.timed;
+        let rebuilt = self
+            .slots
             .iter()
             .map(|slot| {
                 let Some(old) = &slot.renderer else {
                     return Ok(None);
                 };
                 let mut renderer = Renderer::new(gpu, old.scene().clone(), old.settings().clone())?;
-                if self.timed {
+                if timed {
                     renderer.enable_pass_timing(gpu);
                 }
                 Ok(Some(renderer))
             })
-            .collect()
-    }
-
-    /// Puts renderers from [`ViewSlots::rebuilt_renderers`] in place.
-    pub fn replace_renderers(&mut self, rebuilt: Vec<Option<Renderer>>) {
+            .collect::<Result<Vec<_>, GpuError>>()?;
         for (slot, new) in self.slots.iter_mut().zip(rebuilt) {
-            if let Some(renderer) = new {
-                slot.renderer = Some(renderer);
-                slot.shown = None;
+            let Some(renderer) = new else { continue };
+            let keys = renderer.pipeline_keys();
+            let job = self.warmer.request(
+                gpu,
+                renderer.scene().clone(),
+                renderer.settings().clone(),
+                Some(keys),
+            );
+            match job {
+                Some(w) => slot.reloaded = Some((renderer, w)),
+                None => {
+                    slot.renderer = Some(renderer);
+                    slot.reloaded = None;
+                    slot.shown = None;
+                }
             }
         }
+        Ok(())
     }
 
     /// Saves each shown view's image (full size, even under a wipe) as a
@@ -513,7 +576,80 @@ fn step<K: PartialEq>(has: bool, keys: Option<K>, warming: Option<(Option<K>, bo
 
 #[cfg(test)]
 mod tests {
-    use super::{step, Step};
+    use super::{step, Step, ViewSlots};
+    use crate::app::layout::Layout;
+    use crate::app::model::Model;
+    use crate::gpu::shader::ShaderOverrides;
+    use crate::gpu::{AdapterChoice, Gpu};
+    use crate::render::RenderSettings;
+    use crate::scene::Scene;
+
+    /// A shader hot reload rebuilds the view's renderer with the new
+    /// shaders but keeps drawing with the old one until the new one's
+    /// pipelines are compiled ahead; `sync` then puts it in place, brought
+    /// up to a camera moved meanwhile. The reloaded resolve paints
+    /// magenta, so the pixel tells which renderer draws.
+    #[test]
+    fn reloaded_shaders_show_once_compiled_ahead() {
+        let gpu = Gpu::new_headless(&AdapterChoice::Software).unwrap();
+        let format = wgpu::TextureFormat::Rgba8Unorm;
+        let mut egui =
+            egui_wgpu::Renderer::new(&gpu.device, format, egui_wgpu::RendererOptions::default());
+        let mut slots = ViewSlots::new(&gpu, format, Some(&mut egui), false);
+        let mut model = Model::new(
+            Scene::builtin_default(),
+            None,
+            &[],
+            Layout::Single,
+            RenderSettings::default(),
+        );
+        slots.sizes = vec![(16, 12)];
+        slots.sync(&gpu, &model, &mut egui).unwrap();
+        let mut corner = |slots: &mut ViewSlots| {
+            let r = slots.slots[0].renderer.as_mut().expect("a renderer");
+            r.render_sample(&gpu).unwrap();
+            r.read_srgb8(&gpu).unwrap()[..3].to_vec()
+        };
+        let before = corner(&mut slots);
+        assert_ne!(before, [255, 0, 255]);
+
+        let dir = std::env::temp_dir().join(format!("celray-view-reload-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let resolve = crate::gpu::shader::SHADER_FILES
+            .iter()
+            .find(|(name, _)| *name == "resolve.wgsl")
+            .unwrap()
+            .1;
+        let magenta = resolve.replace(
+            "return vec4<f32>(c, 1.0);",
+            "return vec4<f32>(1.0, 0.0, 1.0, 1.0);",
+        );
+        assert_ne!(magenta, resolve, "resolve.wgsl changed shape");
+        std::fs::write(dir.join("resolve.wgsl"), magenta).unwrap();
+        gpu.set_shader_overrides(Some(ShaderOverrides::read_dir(&dir).unwrap()));
+        std::fs::remove_dir_all(&dir).unwrap();
+        slots.reload_renderers(&gpu).unwrap();
+        assert_eq!(slots.warming(), 1, "the reload waits for its warm-up");
+        assert_eq!(corner(&mut slots), before, "the old shaders draw meanwhile");
+
+        model.scene.camera.eye.x += 0.5;
+        let start = std::time::Instant::now();
+        while slots.warming() > 0 {
+            assert!(start.elapsed().as_secs() < 300, "warm-up never finished");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            slots.sync(&gpu, &model, &mut egui).unwrap();
+        }
+        assert_eq!(
+            corner(&mut slots),
+            [255, 0, 255],
+            "the reloaded shaders draw"
+        );
+        let drawn = slots.slots[0].renderer.as_ref().unwrap().scene();
+        assert_eq!(
+            drawn.camera, model.scene.camera,
+            "at the camera moved meanwhile"
+        );
+    }
 
     /// A change applies at once where the renderer has its pipelines, and
     /// otherwise only once a warm-up of the same pipelines has finished; a
