@@ -605,7 +605,7 @@ mod tests {
         );
         slots.sizes = vec![(16, 12)];
         slots.sync(&gpu, &model, &mut egui).unwrap();
-        let mut corner = |slots: &mut ViewSlots| {
+        let corner = |slots: &mut ViewSlots| {
             let r = slots.slots[0].renderer.as_mut().expect("a renderer");
             r.render_sample(&gpu).unwrap();
             r.read_srgb8(&gpu).unwrap()[..3].to_vec()
