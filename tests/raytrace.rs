@@ -460,17 +460,20 @@ fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
     );
     drop(fresh);
     let mut warmer = Warmer::new(&gpu);
-    let job = warmer
-        .request(&gpu, scene.clone(), hybrid.clone(), Some(off))
-        .expect("a warm-up thread");
-    let drew = loop {
-        if let Some(outcome) = warmer.outcome(&job) {
-            break outcome.unwrap_or_else(|e| panic!("warm-up failed: {e}"));
+    // The pipelines a warm-up of this change drew with, once it is done.
+    let mut warm = |settings: &RenderSettings, keys| {
+        let job = warmer
+            .request(&gpu, scene.clone(), settings.clone(), Some(keys))
+            .expect("a warm-up thread");
+        loop {
+            if let Some(outcome) = warmer.outcome(&job) {
+                break outcome.unwrap_or_else(|e| panic!("warm-up failed: {e}"));
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
         }
-        std::thread::sleep(std::time::Duration::from_millis(20));
     };
     assert_eq!(
-        drew,
+        warm(&hybrid, off),
         Some(off),
         "the warm-up draws with the keys it is given"
     );
@@ -496,17 +499,8 @@ fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
         !r.has_pipelines(&reprojecting),
         "not built before the switch"
     );
-    let job = warmer
-        .request(&gpu, scene.clone(), temporal.clone(), Some(reprojecting))
-        .expect("a warm-up thread");
-    let drew = loop {
-        if let Some(outcome) = warmer.outcome(&job) {
-            break outcome.unwrap_or_else(|e| panic!("warm-up failed: {e}"));
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    };
     assert_eq!(
-        drew,
+        warm(&temporal, reprojecting),
         Some(reprojecting),
         "the warm-up draws a moving frame, through the reproject pass"
     );
