@@ -704,7 +704,8 @@ impl Renderer {
             // The accumulate pass reads the trace pass's buffers; the
             // reproject pass reads textures.
             if moving.is_some() {
-                (self.targets.traced_output).encode_copy(&mut encoder, &self.targets.traced);
+                let t = &self.targets.traced;
+                (self.targets.traced_output).encode_copy(&mut encoder, &t.normal_depth, &t.id);
             }
         }
         if outlines {
@@ -913,14 +914,14 @@ impl Renderer {
     /// (see [`SceneBuffers::instance_order`]). For tests (picking is
     /// [`Renderer::pick`], on the CPU).
     pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
-        let bytes = readback::read_texture(gpu, &self.gbuffer(gpu).id, 4)?;
+        let bytes = readback::read_texture(gpu, self.gbuffer(gpu).1, 4)?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
     /// The G-buffer's normal (xyz, world space) and view depth (w) per
     /// pixel, as the accumulate pass's outline search reads them. For tests.
     pub fn read_normal_depth(&self, gpu: &Gpu) -> Result<Vec<[f32; 4]>, GpuError> {
-        let bytes = readback::read_texture(gpu, &self.gbuffer(gpu).normal_depth, 16)?;
+        let bytes = readback::read_texture(gpu, self.gbuffer(gpu).0, 16)?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
@@ -943,21 +944,23 @@ impl Renderer {
         }
     }
 
-    /// The G-buffer the accumulate pass read in the last sample, as
-    /// textures: in hybrid and raytrace mode the trace pass's buffers are
-    /// first copied into the traced textures (the samples skip that copy
-    /// unless a reproject pass follows).
-    fn gbuffer(&self, gpu: &Gpu) -> &targets::GBuffer {
+    /// The normal + depth and id textures of the G-buffer the accumulate
+    /// pass read in the last sample: in hybrid and raytrace mode the trace
+    /// pass's buffers, first copied into the traced textures (the samples
+    /// skip that copy unless a reproject pass follows).
+    fn gbuffer(&self, gpu: &Gpu) -> (&wgpu::Texture, &wgpu::Texture) {
         if self.settings.mode == RenderMode::Raster {
-            return &self.targets.raster;
+            let g = &self.targets.raster;
+            return (&g.normal_depth, &g.id);
         }
+        let t = &self.targets.traced;
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("traced G-buffer copy"),
             });
-        (self.targets.traced_output).encode_copy(&mut encoder, &self.targets.traced);
+        (self.targets.traced_output).encode_copy(&mut encoder, &t.normal_depth, &t.id);
         gpu.queue.submit([encoder.finish()]);
-        &self.targets.traced
+        (&t.normal_depth, &t.id)
     }
 }

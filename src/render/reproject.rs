@@ -16,7 +16,7 @@ use crate::gpu::layout::{
 };
 use crate::gpu::twins::{ReprojectUniforms, REPROJECT_WORKGROUP};
 use crate::gpu::{shader, Gpu, GpuError};
-use crate::render::targets::{GBuffer, Targets, ID_FORMAT, NORMAL_DEPTH_FORMAT};
+use crate::render::targets::{Targets, ID_FORMAT, NORMAL_DEPTH_FORMAT};
 
 /// The previous frame's image and surfaces, and this frame's output.
 struct History {
@@ -125,8 +125,8 @@ impl ReprojectPass {
         };
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
         let (hist_nd, hist_id) = (view(&hist.normal_depth), view(&hist.id));
-        let group = |label, g: &GBuffer| {
-            let (nd, id) = (view(&g.normal_depth), view(&g.id));
+        let group = |label, normal_depth: &wgpu::Texture, id: &wgpu::Texture| {
+            let (nd, id) = (view(normal_depth), view(id));
             gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
                 layout: &self.layout,
@@ -175,8 +175,16 @@ impl ReprojectPass {
             })
         };
         self.bind_groups = Some([
-            group("reproject bind group (raster)", &targets.raster),
-            group("reproject bind group (traced)", &targets.traced),
+            group(
+                "reproject bind group (raster)",
+                &targets.raster.normal_depth,
+                &targets.raster.id,
+            ),
+            group(
+                "reproject bind group (traced)",
+                &targets.traced.normal_depth,
+                &targets.traced.id,
+            ),
         ]);
         Ok(())
     }
@@ -202,11 +210,7 @@ impl ReprojectPass {
         if traced {
             // From the trace pass's buffers: the traced textures hold the
             // last frame only where a reproject pass followed it.
-            (targets.traced_output).encode_copy_normal_depth_id(
-                encoder,
-                &hist.normal_depth,
-                &hist.id,
-            );
+            (targets.traced_output).encode_copy(encoder, &hist.normal_depth, &hist.id);
         } else {
             let extent = wgpu::Extent3d {
                 width: hist.width,

@@ -1,7 +1,8 @@
-//! Per-image GPU storage: two G-buffers (the raster pass's, with its depth
-//! target and albedo, and the trace pass's, which it writes as buffers
-//! copied into its textures), the float accumulation buffer, and an 8-bit
-//! sRGB target for capture.
+//! Per-image GPU storage: two G-buffers (the raster pass's textures, with
+//! its depth target and albedo, and the trace pass's buffers, whose
+//! normals, depths and ids are copied into textures where a pass needs
+//! those), the float accumulation buffer, and an 8-bit sRGB target for
+//! capture.
 
 use crate::gpu::{Gpu, GpuError};
 
@@ -21,15 +22,22 @@ pub struct GBuffer {
     pub id: wgpu::Texture,
 }
 
+/// The traced G-buffer's normal + view depth and ids as textures, copied
+/// from [`TracedOutput`] only where a texture is read: by the reproject
+/// pass on a moving frame, and by the tests' G-buffer read-backs.
+pub struct TracedTextures {
+    pub normal_depth: wgpu::Texture,
+    pub id: wgpu::Texture,
+}
+
 pub use crate::gpu::twins::TRACED_ROW_ALIGN_PX;
 
 /// The trace pass's output, written as plain storage buffers (on lavapipe
 /// a storage-texture store costs several times a buffer store;
 /// docs/performance.md), rows [`TRACED_ROW_ALIGN_PX`]-aligned, each texel
 /// in its texture's format. The outline marks and the accumulate pass read
-/// them as they are (`shaders/lib/gbuffer.wgsl`); they are copied into the
-/// traced [`GBuffer`]'s textures only for the reproject pass and the
-/// G-buffer read-backs.
+/// them as they are (`shaders/lib/gbuffer.wgsl`); the normal + depth and
+/// ids are copied into [`TracedTextures`] only where a texture is read.
 pub struct TracedOutput {
     /// Per pixel the colour's four halves (as [`COLOR_FORMAT`] stores them).
     pub color: wgpu::Buffer,
@@ -40,38 +48,16 @@ pub struct TracedOutput {
 }
 
 impl TracedOutput {
-    /// Copies the buffers into `g`'s textures.
-    pub fn encode_copy(&self, encoder: &mut wgpu::CommandEncoder, g: &GBuffer) {
-        self.copy_into(
-            encoder,
-            [
-                (&self.color, &g.color),
-                (&self.normal_depth, &g.normal_depth),
-                (&self.id, &g.id),
-            ],
-        );
-    }
-
     /// Copies the normal + depth and the id buffers into two textures of
-    /// their formats and the targets' size (a reprojection's history).
-    pub fn encode_copy_normal_depth_id(
+    /// their formats and the targets' size ([`TracedTextures`], or a
+    /// reprojection's history).
+    pub fn encode_copy(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         normal_depth: &wgpu::Texture,
         id: &wgpu::Texture,
     ) {
-        self.copy_into(
-            encoder,
-            [(&self.normal_depth, normal_depth), (&self.id, id)],
-        );
-    }
-
-    fn copy_into<'a>(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        pairs: impl IntoIterator<Item = (&'a wgpu::Buffer, &'a wgpu::Texture)>,
-    ) {
-        for (buffer, texture) in pairs {
+        for (buffer, texture) in [(&self.normal_depth, normal_depth), (&self.id, id)] {
             let bytes = texel_bytes(texture.format());
             encoder.copy_buffer_to_texture(
                 wgpu::TexelCopyBufferInfo {
@@ -99,10 +85,9 @@ pub struct Targets {
     pub height: u32,
     /// Written by the raster pass.
     pub raster: GBuffer,
-    /// Written by the trace pass (hybrid and raytrace modes), through
-    /// [`TracedOutput`].
-    pub traced: GBuffer,
+    /// Written by the trace pass (hybrid and raytrace modes).
     pub traced_output: TracedOutput,
+    pub traced: TracedTextures,
     /// See [`ALBEDO_FORMAT`].
     pub raster_albedo: wgpu::Texture,
     pub depth: wgpu::Texture,
@@ -177,7 +162,8 @@ impl Targets {
             }
         }
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-        // The traced textures are filled by copies from TracedOutput.
+        // The traced textures are filled by copies from TracedOutput, and
+        // copied into a reprojection's history.
         let copied = wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::TEXTURE_BINDING;
         let output = |label, format| {
             gpu.device.create_buffer(&wgpu::BufferDescriptor {
@@ -210,8 +196,7 @@ impl Targets {
                 ),
             },
             raster_albedo: texture(gpu, "raster albedo", width, height, ALBEDO_FORMAT, attach),
-            traced: GBuffer {
-                color: texture(gpu, "traced colour", width, height, COLOR_FORMAT, copied),
+            traced: TracedTextures {
                 normal_depth: texture(
                     gpu,
                     "traced normal+depth",
