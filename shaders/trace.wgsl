@@ -395,7 +395,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         colour = vec3<f32>(1.0, 0.0, 1.0);
         atomicAdd(&stats[0], 1u);
     }
-    let k = gid.y * ((frame.size_px.x + TRACED_ROW_ALIGN_PX - 1u) & ~(TRACED_ROW_ALIGN_PX - 1u)) + gid.x;
+    let k = traced_index(gid.xy, frame.size_px.x);
     out_color[k] = vec2<u32>(half_bits_toward_zero(colour.r) | half_bits_toward_zero(colour.g) << 16u, half_bits_toward_zero(colour.b) | half_bits_toward_zero(1.0) << 16u);
     out_normal_depth[k] = vec4<f32>(primary_normal, primary_depth);
     out_id[k] = primary_id;

@@ -18,15 +18,14 @@ override TRACED_GBUFFER: bool = false;
 @group(1) @binding(7) var<storage, read> traced_normal_depth: array<vec4<f32>>;
 @group(1) @binding(8) var<storage, read> traced_id: array<u32>;
 
-fn traced_index(q: vec2<i32>) -> u32 {
-    let row_px = (frame.size_px.x + TRACED_ROW_ALIGN_PX - 1u) & ~(TRACED_ROW_ALIGN_PX - 1u);
-    return u32(q.y) * row_px + u32(q.x);
+fn traced_at(q: vec2<i32>) -> u32 {
+    return traced_index(vec2<u32>(q), frame.size_px.x);
 }
 
 // Linear colour (a half-float texel: its halves widen exactly either way).
 fn gbuffer_color(q: vec2<i32>) -> vec3<f32> {
     if TRACED_GBUFFER {
-        let c = traced_color[traced_index(q)];
+        let c = traced_color[traced_at(q)];
         return vec3<f32>(unpack2x16float(c.x), unpack2x16float(c.y).x);
     }
     return textureLoad(color_tex, q, 0).rgb;
@@ -35,7 +34,7 @@ fn gbuffer_color(q: vec2<i32>) -> vec3<f32> {
 // World normal (xyz) and view depth (w).
 fn gbuffer_normal_depth(q: vec2<i32>) -> vec4<f32> {
     if TRACED_GBUFFER {
-        return traced_normal_depth[traced_index(q)];
+        return traced_normal_depth[traced_at(q)];
     }
     return textureLoad(normal_depth_tex, q, 0);
 }
@@ -43,7 +42,7 @@ fn gbuffer_normal_depth(q: vec2<i32>) -> vec4<f32> {
 // 0 for the background, else the GPU instance + 1.
 fn gbuffer_id(q: vec2<i32>) -> u32 {
     if TRACED_GBUFFER {
-        return traced_id[traced_index(q)];
+        return traced_id[traced_at(q)];
     }
     return textureLoad(id_tex, q, 0).x;
 }

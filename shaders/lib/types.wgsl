@@ -199,3 +199,12 @@ struct GpuCsgLeaf {
     material: u32,
     _pad: u32,
 }
+
+// Index of pixel p in the trace pass's output buffers (src/render/targets.rs,
+// TracedOutput) for an image `width` pixels wide: rows start every
+// TRACED_ROW_ALIGN_PX pixels. The trace pass writes them, lib/gbuffer.wgsl
+// reads them.
+fn traced_index(p: vec2<u32>, width: u32) -> u32 {
+    let row_px = (width + TRACED_ROW_ALIGN_PX - 1u) & ~(TRACED_ROW_ALIGN_PX - 1u);
+    return p.y * row_px + p.x;
+}

@@ -174,35 +174,34 @@ impl AccumulatePass {
             view(&raster.normal_depth),
             view(&raster.id),
         );
+        // Bindings 0-3 and 6-8 of both groups: the frame and the G-buffer
+        // of lib/gbuffer.wgsl; each adds its own (4 and up).
+        let shared = [
+            (0, frame.as_entire_binding()),
+            (1, wgpu::BindingResource::TextureView(&color)),
+            (2, wgpu::BindingResource::TextureView(&normal_depth)),
+            (3, wgpu::BindingResource::TextureView(&id)),
+            (6, traced.color.as_entire_binding()),
+            (7, traced.normal_depth.as_entire_binding()),
+            (8, traced.id.as_entire_binding()),
+        ];
         self.scene_group = Some(scene.bind_group.clone());
         self.bind_group = Some(group(
             "accumulate bind group",
             &self.layout,
             &[
-                (0, frame.as_entire_binding()),
-                (1, wgpu::BindingResource::TextureView(&color)),
-                (2, wgpu::BindingResource::TextureView(&normal_depth)),
-                (3, wgpu::BindingResource::TextureView(&id)),
-                (4, targets.accum.as_entire_binding()),
-                (5, marks.as_entire_binding()),
-                (6, traced.color.as_entire_binding()),
-                (7, traced.normal_depth.as_entire_binding()),
-                (8, traced.id.as_entire_binding()),
-            ],
+                &shared[..],
+                &[
+                    (4, targets.accum.as_entire_binding()),
+                    (5, marks.as_entire_binding()),
+                ],
+            ]
+            .concat(),
         ));
         self.tiles_group = Some(group(
             "outline tiles bind group",
             &self.tiles_layout,
-            &[
-                (0, frame.as_entire_binding()),
-                (1, wgpu::BindingResource::TextureView(&color)),
-                (2, wgpu::BindingResource::TextureView(&normal_depth)),
-                (3, wgpu::BindingResource::TextureView(&id)),
-                (4, marks.as_entire_binding()),
-                (6, traced.color.as_entire_binding()),
-                (7, traced.normal_depth.as_entire_binding()),
-                (8, traced.id.as_entire_binding()),
-            ],
+            &[&shared[..], &[(4, marks.as_entire_binding())]].concat(),
         ));
         self.marks = Some(marks);
     }
