@@ -279,6 +279,36 @@ fn triangles(scene: &Scene) -> usize {
         .sum()
 }
 
+/// Spot (the shipped cow mesh) alone, seen from the front: instanced on a
+/// grid by the ray and acceleration suites.
+fn spot_scene(args: &BenchArgs) -> anyhow::Result<Scene> {
+    let spot_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets/models/spot/spot_triangulated.obj");
+    mesh_scene(
+        &spot_path,
+        "eye: (0.0, 1.0, 3.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0",
+        args,
+    )
+}
+
+/// `n` toon-shaded spheres on a grid filling the view, lit by one
+/// directional light: the instance-scaling scenes.
+fn ball_grid(args: &BenchArgs, n: usize) -> anyhow::Result<Scene> {
+    let ron = format!(
+        r#"(version: 1,
+            camera: (eye: (0.0, 3.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: {w}, height: {h}),
+            lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: {{ "m": (base_color: (0.8, 0.3, 0.2), model: Toon(bands: 4)) }},
+            shapes: {{ "ball": Sphere(radius: 0.45) }},
+            instances: [(shape: "ball", material: "m")],
+        )"#,
+        w = args.width,
+        h = args.height
+    );
+    let ball = Scene::from_ron_str(&ron, "bench", std::path::Path::new("."))?;
+    Ok(grid(&ball, n, 1.1))
+}
+
 fn raster_suite(
     gpu: &Gpu,
     args: &BenchArgs,
@@ -604,40 +634,16 @@ fn rays_suite(
     } else {
         r.skipped("helmet_rays", &missing_helmet(args));
     }
-    let spot_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("assets/models/spot/spot_triangulated.obj");
-    let spot = mesh_scene(
-        &spot_path,
-        "eye: (0.0, 1.0, 3.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0",
-        args,
-    )?;
     ray_row(
         gpu,
         "spot x 10,000",
         "spot_10000_rays",
-        grid(&spot, 10_000, 1.1),
+        grid(&spot_scene(args)?, 10_000, 1.1),
         args,
         r,
         None,
     )?;
-    let ball = |n: usize| -> anyhow::Result<Scene> {
-        let ron = format!(
-            r#"(version: 1,
-                camera: (eye: (0.0, 3.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: {w}, height: {h}),
-                lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
-                materials: {{ "m": (base_color: (0.8, 0.3, 0.2), model: Toon(bands: 4)) }},
-                shapes: {{ "ball": Sphere(radius: 0.45) }},
-                instances: [(shape: "ball", material: "m")],
-            )"#,
-            w = args.width,
-            h = args.height
-        );
-        Ok(grid(
-            &Scene::from_ron_str(&ron, "bench", std::path::Path::new("."))?,
-            n,
-            1.1,
-        ))
-    };
+    let ball = |n: usize| ball_grid(args, n);
     ray_row(
         gpu,
         "100 analytic spheres",

@@ -14,7 +14,7 @@ use celray::render::{AccelChoice, RenderMode, RenderSettings, Renderer};
 use celray::scene::Scene;
 
 use super::report::{md, Report};
-use super::{best_of, grid, mesh_scene, ray_renderer, BenchArgs};
+use super::{ball_grid, best_of, grid, ray_renderer, spot_scene, BenchArgs};
 
 /// GPU milliseconds of the trace pass, raytrace mode, best of 3 samples.
 fn trace_ms(gpu: &Gpu, scene: &Scene, args: &BenchArgs, accel: AccelChoice) -> anyhow::Result<f64> {
@@ -152,38 +152,19 @@ pub fn accel_suite(
             r,
         )?;
     }
-    let spot_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("assets/models/spot/spot_triangulated.obj");
-    let spot = mesh_scene(
-        &spot_path,
-        "eye: (0.0, 1.0, 3.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0",
-        args,
-    )?;
     row(
         gpu,
         "spot x 10,000",
         "accel_spot_10000",
-        grid(&spot, 10_000, 1.1),
+        grid(&spot_scene(args)?, 10_000, 1.1),
         args,
         r,
     )?;
-    let ron = format!(
-        r#"(version: 1,
-            camera: (eye: (0.0, 3.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: {w}, height: {h}),
-            lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
-            materials: {{ "m": (base_color: (0.8, 0.3, 0.2), model: Toon(bands: 4)) }},
-            shapes: {{ "ball": Sphere(radius: 0.45) }},
-            instances: [(shape: "ball", material: "m")],
-        )"#,
-        w = args.width,
-        h = args.height
-    );
-    let ball = Scene::from_ron_str(&ron, "bench", std::path::Path::new("."))?;
     row(
         gpu,
         "100 analytic spheres",
         "accel_spheres_100",
-        grid(&ball, 100, 1.1),
+        ball_grid(args, 100)?,
         args,
         r,
     )
