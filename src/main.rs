@@ -243,7 +243,8 @@ struct ViewArgs {
     #[arg(long)]
     no_vsync: bool,
     /// Render this many frames (at most 100000), then exit (for tests and
-    /// benchmarks).
+    /// benchmarks). Counted from the first frame that shows every view
+    /// (once their shaders have compiled).
     #[arg(long, value_name = "N")]
     exit_after_frames: Option<u64>,
     /// With --exit-after-frames: save the window's content (panel
@@ -804,6 +805,15 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
             ),
             None => println!("{} frames: too few to time", report.frames),
         }
+        let s = &report.startup;
+        let at = |ms: Option<f64>| ms.map_or("never".to_string(), |ms| format!("{ms:.0} ms"));
+        println!(
+            "startup: first window frame after {}, every view shown after {}; \
+             longest wait between window frames until then {:.0} ms",
+            at(s.first_frame_ms),
+            at(s.views_shown_ms),
+            s.longest_wait_ms
+        );
         if let Some(t) = app::timing::mean_pass_times(&report.pass_times) {
             println!(
                 "GPU per frame (mean of {} timed frames that sampled, all views): raster {:.2} ms, \

@@ -132,12 +132,39 @@ fn window_screenshot_shows_the_scene_and_the_panel() {
             "--screenshot",
             "window.png",
             "--no-watch",
+            "--report-frame-times",
         ],
         Some(&x.display),
         &dir,
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "celray view failed:\n{stderr}");
+    // The view's pipelines are compiled ahead on the warm-up thread, which
+    // the first frame starts: so the window shows a frame (the panel)
+    // before the view's first image, however fast the compile. Were they
+    // compiled inside the first frame, both would be the same frame.
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let startup = stdout
+        .lines()
+        .find(|l| l.starts_with("startup:"))
+        .unwrap_or_else(|| panic!("no startup line in:\n{stdout}"));
+    let ms_after = |what: &str| -> f64 {
+        let rest = &startup[startup.find(what).expect(what) + what.len()..];
+        rest.split(" ms")
+            .next()
+            .unwrap()
+            .trim()
+            .parse()
+            .expect(startup)
+    };
+    let (first, shown) = (
+        ms_after("first window frame after"),
+        ms_after("every view shown after"),
+    );
+    assert!(
+        first < shown,
+        "the first window frame waited for the view: {startup}"
+    );
     let img = image::open(dir.join("window.png"))
         .expect("the screenshot was written")
         .to_rgb8();
@@ -297,12 +324,39 @@ fn camera_path_drives_the_view() {
             "--screenshot",
             "window.png",
             "--no-watch",
+            "--report-frame-times",
         ],
         Some(&x.display),
         &dir,
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "celray view failed:\n{stderr}");
+    // The view's pipelines are compiled ahead on the warm-up thread, which
+    // the first frame starts: so the window shows a frame (the panel)
+    // before the view's first image, however fast the compile. Were they
+    // compiled inside the first frame, both would be the same frame.
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let startup = stdout
+        .lines()
+        .find(|l| l.starts_with("startup:"))
+        .unwrap_or_else(|| panic!("no startup line in:\n{stdout}"));
+    let ms_after = |what: &str| -> f64 {
+        let rest = &startup[startup.find(what).expect(what) + what.len()..];
+        rest.split(" ms")
+            .next()
+            .unwrap()
+            .trim()
+            .parse()
+            .expect(startup)
+    };
+    let (first, shown) = (
+        ms_after("first window frame after"),
+        ms_after("every view shown after"),
+    );
+    assert!(
+        first < shown,
+        "the first window frame waited for the view: {startup}"
+    );
     let img = image::open(dir.join("window.png"))
         .expect("the screenshot was written")
         .to_rgb8();

@@ -75,6 +75,7 @@ pub(super) fn run(options: ViewOptions) -> Result<RunReport, AppError> {
         views: 0,
         samples: Vec::new(),
         pass_times: Vec::new(),
+        startup: Default::default(),
     }))
 }
 

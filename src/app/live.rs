@@ -18,7 +18,7 @@ use super::panel::{self, PanelInfo};
 use super::reload::HotReload;
 use super::screenshot;
 use super::surface::{read_rgba8, Acquired, WindowSurface};
-use super::timing::{FrameStats, FrameTimer, PassTimes};
+use super::timing::{FrameStats, FrameTimer, PassTimes, Startup};
 use super::view_ui::{views_ui, ViewArea};
 use super::views::ViewSlots;
 use super::{AppError, RunReport, ViewOptions};
@@ -56,6 +56,9 @@ pub(super) struct LiveApp {
     /// `--camera-path`: the path and the camera it starts from.
     camera_path: Option<(CameraPath, Camera)>,
     run: RunLimits,
+    /// When the app started, and how its first frames went.
+    started: Instant,
+    startup: Startup,
 }
 
 impl LiveApp {
@@ -65,6 +68,7 @@ impl LiveApp {
         o: &ViewOptions,
         proxy: &EventLoopProxy<AppEvent>,
     ) -> Result<LiveApp, AppError> {
+        let started = Instant::now();
         let title = window_title(o.scene_path.as_deref());
         let (mut surface, gpu) =
             WindowSurface::open(event_loop, &title, o.window_size, &o.adapter)?;
@@ -100,6 +104,8 @@ impl LiveApp {
                 screenshot: o.screenshot.clone(),
                 keep_times: o.report_frame_times,
             },
+            started,
+            startup: Startup::default(),
         };
         if o.watch {
             live.rewatch(proxy);
@@ -125,6 +131,7 @@ impl LiveApp {
             views: self.model.layout.view_count(),
             samples: self.views.samples(self.model.layout.view_count()),
             pass_times: self.pass_times.clone(),
+            startup: self.startup.clone(),
         }
     }
 
@@ -154,19 +161,32 @@ impl LiveApp {
         let (ui, area) = self.run_ui();
         self.apply_edits(&area, ui.pixels_per_point, vsync_before);
         let sampled = self.sample_views();
-        let last_frame = self
-            .run
-            .exit_after
-            .is_some_and(|n| self.stats.frames + 1 >= n);
+        // Frames before every shown view draws (its first pipelines still
+        // compiling ahead, render::warmup) are not counted: the frame count
+        // of `--exit-after-frames` and the frame times are of frames that
+        // show the views. A view that cannot be built (its error shown)
+        // does not hold the count back.
+        let counted = self.model.error.is_some()
+            || !(self.views)
+                .compiling_first(self.model.layout.view_count())
+                .contains(&true);
+        let last_frame =
+            counted && (self.run.exit_after).is_some_and(|n| self.stats.frames + 1 >= n);
         let want_shot = std::mem::take(&mut self.model.requests.screenshot)
             || (last_frame && self.run.screenshot.is_some());
         let repaint_delay = ui.repaint_delay;
         let shot = self.draw_and_present(frame, ui, &area.rects, want_shot);
+        let since_start = self.started.elapsed().as_secs_f64() * 1e3;
+        self.startup.presented(since_start, counted);
         if suboptimal {
             self.surface.configure(&self.gpu, self.model.vsync);
         }
         self.collect_times(sampled);
-        self.stats.tick(self.run.keep_times);
+        if counted {
+            self.stats.tick(self.run.keep_times);
+        } else {
+            self.stats.pause();
+        }
         self.save_requested(shot, last_frame)?;
         if self.run.exit_after.is_some_and(|n| self.stats.frames >= n) {
             return Ok(true);
@@ -201,6 +221,7 @@ impl LiveApp {
             shader_dir: (self.reload.shader_dir.as_ref()).map(|d| d.display().to_string()),
             accel: self.views.accel_info(),
             warming: self.views.warming(),
+            compiling: (self.views).compiling_first(self.model.layout.view_count()),
         };
         let textures = self.views.texture_ids();
         let model = &mut self.model;
@@ -213,7 +234,7 @@ impl LiveApp {
                 .default_size(330.0)
                 .show(ui, |ui| panel::side_panel(ui, model, &info));
             let rect = ui.available_rect_before_wrap();
-            area = views_ui(ui, rect, model, &textures, &info.samples);
+            area = views_ui(ui, rect, model, &textures, &info.samples, &info.compiling);
         });
         (frame, area)
     }
@@ -386,7 +407,14 @@ impl LiveApp {
     /// (until egui's `repaint_delay`, when it asked for one).
     fn schedule_next(&mut self, repaint_delay: Duration) {
         let flying = self.model.nav == NavMode::Fly && self.model.move_keys.any();
-        if self.views.converging()
+        let count = self.model.layout.view_count();
+        let compiling_first = self.views.compiling_first(count).contains(&true);
+        if compiling_first && !flying && !self.views.converging() {
+            // Nothing to draw but the panel until the views' first
+            // pipelines are compiled (render::warmup): leave the cores to
+            // the compile, and look again shortly.
+            self.repaint_at = Some(Instant::now() + Duration::from_millis(50));
+        } else if self.views.converging()
             || flying
             || self.run.exit_after.is_some()
             || repaint_delay.is_zero()

@@ -125,6 +125,8 @@ pub struct RunReport {
     /// GPU pass times of the frames that were timed (empty without
     /// timestamp queries).
     pub pass_times: Vec<timing::PassTimes>,
+    /// How the window started.
+    pub startup: timing::Startup,
 }
 
 /// Opens the window and runs until it is closed (or `exit_after_frames`).

@@ -37,6 +37,8 @@ pub struct PanelInfo<'a> {
     /// Views whose change waits for its shaders to compile (they show the
     /// old state meanwhile).
     pub warming: usize,
+    /// Per shown view, whether it waits for its first pipelines.
+    pub compiling: Vec<bool>,
 }
 
 /// A combo box over `options`, named by `name`: one line per enum field.
@@ -198,7 +200,7 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
     if info.warming > 0 {
         ui.label(
             RichText::new(format!(
-                "compiling shaders for the change ({} view{}); showing the old state",
+                "compiling shaders ({} view{}); each view shows its last image meanwhile",
                 info.warming,
                 if info.warming == 1 { "" } else { "s" }
             ))

@@ -139,6 +139,36 @@ impl FrameTimer {
     }
 }
 
+/// How the window started, in ms from the app's start (the window and
+/// device opened, nothing compiled yet): its first presented frame, the
+/// first that showed every view (their first pipelines compiled), and the
+/// longest wait between presented frames up to then (a stall of the
+/// window, as its user sees it).
+#[derive(Debug, Clone, Default)]
+pub struct Startup {
+    pub first_frame_ms: Option<f64>,
+    pub views_shown_ms: Option<f64>,
+    pub longest_wait_ms: f64,
+    last_present_ms: Option<f64>,
+}
+
+impl Startup {
+    /// Records a frame presented at `ms` (from the start); `views_shown`:
+    /// every view drew in it.
+    pub fn presented(&mut self, ms: f64, views_shown: bool) {
+        if self.views_shown_ms.is_some() {
+            return;
+        }
+        let since = self.last_present_ms.unwrap_or(0.0);
+        self.longest_wait_ms = self.longest_wait_ms.max(ms - since);
+        self.last_present_ms = Some(ms);
+        self.first_frame_ms.get_or_insert(ms);
+        if views_shown {
+            self.views_shown_ms = Some(ms);
+        }
+    }
+}
+
 /// CPU frame times: the interval between consecutive presented frames.
 #[derive(Debug, Default)]
 pub struct FrameStats {

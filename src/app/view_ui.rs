@@ -26,6 +26,7 @@ pub(super) fn views_ui(
     model: &mut Model,
     textures: &[Option<egui::TextureId>],
     samples: &[u32],
+    compiling: &[bool],
 ) -> ViewArea {
     let ppp = ui.ctx().pixels_per_point();
     let area = layout::snap(area, ppp);
@@ -35,7 +36,7 @@ pub(super) fn views_ui(
     let response = ui.interact(area, Id::unique("celray views"), Sense::click_and_drag());
     let painter = ui.painter_at(area);
     draw_images(&painter, model, &rects, textures);
-    draw_labels(&painter, model, &rects, samples);
+    draw_labels(&painter, model, &rects, samples, compiling);
     if model.layout == Layout::Wipe {
         wipe_line(ui, &painter, area, model);
     }
@@ -82,17 +83,28 @@ fn draw_images(
     }
 }
 
-/// Each view's label: its name, samples and settings, on a dark box.
-fn draw_labels(painter: &egui::Painter, model: &Model, rects: &[Rect], samples: &[u32]) {
+/// Each view's label: its name, samples and settings (or, before its first
+/// image, that its shaders are compiling), on a dark box.
+fn draw_labels(
+    painter: &egui::Painter,
+    model: &Model,
+    rects: &[Rect],
+    samples: &[u32],
+    compiling: &[bool],
+) {
     let settings = settings_label(&model.settings);
     for (i, rect) in rects.iter().enumerate() {
-        let text = format!(
-            "{}  {} / {} spp  ({})",
-            model.views[i].label(),
-            samples.get(i).copied().unwrap_or(0),
-            model.settings.spp,
-            settings
-        );
+        let text = if compiling.get(i).copied().unwrap_or(false) {
+            format!("{}  compiling shaders...", model.views[i].label())
+        } else {
+            format!(
+                "{}  {} / {} spp  ({})",
+                model.views[i].label(),
+                samples.get(i).copied().unwrap_or(0),
+                model.settings.spp,
+                settings
+            )
+        };
         let right = model.layout == Layout::Wipe && i == 1;
         let (anchor, pos) = if right {
             (Align2::RIGHT_TOP, rect.right_top() + egui::vec2(-8.0, 8.0))

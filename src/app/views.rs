@@ -57,6 +57,10 @@ struct ViewSlot {
     /// to compile ahead ([`ViewSlots::reload_renderers`]); meanwhile the
     /// old renderer draws with the old shaders.
     reloaded: Option<(Renderer, Warming)>,
+    /// A view's first renderer, built while its pipelines compile ahead
+    /// (the building overlaps the compile), and the inputs it was built
+    /// for; it draws once the warm-up has finished.
+    pending: Option<(Renderer, ViewInputs)>,
 }
 
 /// The view slots and what they share.
@@ -127,6 +131,7 @@ impl ViewSlots {
                     shown: None,
                     warming: None,
                     reloaded: None,
+                    pending: None,
                 }
             })
             .collect();
@@ -135,7 +140,7 @@ impl ViewSlots {
             format,
             sizes: Vec::new(),
             timed,
-            warmer: Warmer::new(gpu),
+            warmer: Warmer::new(gpu).resolving_into(format, resolve_format(format)),
         }
     }
 
@@ -191,9 +196,6 @@ impl ViewSlots {
         egui: &mut egui_wgpu::Renderer,
     ) -> Result<(), GpuError> {
         let count = model.layout.view_count();
-        // Whether views were drawing before this call: then a view shown
-        // for the first time is compiled ahead rather than at once.
-        let running = self.slots.iter().any(|s| s.renderer.is_some());
         for i in 0..self.slots.len() {
             if i >= count {
                 let slot = &mut self.slots[i];
@@ -202,6 +204,7 @@ impl ViewSlots {
                 slot.shown = None;
                 slot.warming = None;
                 slot.reloaded = None;
+                slot.pending = None;
                 continue;
             }
             let size = self.sizes.get(i).copied().unwrap_or((1, 1));
@@ -216,7 +219,7 @@ impl ViewSlots {
                     ..model.settings.clone()
                 },
             };
-            self.update_renderer(gpu, i, want, model, running)?;
+            self.update_renderer(gpu, i, want, model)?;
             self.swap_reloaded(gpu, i)?;
         }
         Ok(())
@@ -288,7 +291,6 @@ impl ViewSlots {
         i: usize,
         want: ViewInputs,
         model: &Model,
-        running: bool,
     ) -> Result<(), GpuError> {
         let timed = self.timed;
         if self.slots[i].inputs.as_ref() == Some(&want) {
@@ -296,7 +298,7 @@ impl ViewSlots {
             self.slots[i].warming = None;
             return Ok(());
         }
-        if !self.compiled_ahead(gpu, i, &want, model, running) {
+        if !self.compiled_ahead(gpu, i, &want, model) {
             return Ok(());
         }
         let slot = &mut self.slots[i];
@@ -317,10 +319,24 @@ impl ViewSlots {
             }
             _ => {
                 slot.renderer = None;
-                let mut renderer = Renderer::new(gpu, want.scene(model), want.settings.clone())?;
-                if timed {
-                    renderer.enable_pass_timing(gpu);
-                }
+                let renderer = match slot.pending.take() {
+                    Some((mut built, had))
+                        if had.spec == want.spec
+                            && had.scene_rev == want.scene_rev
+                            && had.settings == want.settings =>
+                    {
+                        built.set_camera(want.camera.clone());
+                        built
+                    }
+                    _ => {
+                        let mut renderer =
+                            Renderer::new(gpu, want.scene(model), want.settings.clone())?;
+                        if timed {
+                            renderer.enable_pass_timing(gpu);
+                        }
+                        renderer
+                    }
+                };
                 slot.renderer = Some(renderer);
             }
         }
@@ -333,17 +349,10 @@ impl ViewSlots {
     /// pipelines `want` draws with, or they have been compiled ahead
     /// ([`crate::render::warmup`]). Otherwise it asks the warmer to compile
     /// them, and meanwhile the old renderer follows the camera. A view
-    /// shown for the first time waits for its compilation too where views
-    /// were `running` before (a layout with more views); the app's first
-    /// views are built at once.
-    fn compiled_ahead(
-        &mut self,
-        gpu: &Gpu,
-        i: usize,
-        want: &ViewInputs,
-        model: &Model,
-        running: bool,
-    ) -> bool {
+    /// shown for the first time (the app's first views too) waits for its
+    /// compilation the same way, showing nothing meanwhile, so that no
+    /// frame of the window stalls on a compile.
+    fn compiled_ahead(&mut self, gpu: &Gpu, i: usize, want: &ViewInputs, model: &Model) -> bool {
         let slot = &mut self.slots[i];
         // The pipelines the change will draw with, where the renderer can
         // tell without applying it, and whether it has them.
@@ -361,7 +370,7 @@ impl ViewSlots {
                 };
                 (keys, keys.is_some_and(|k| renderer.has_pipelines(&k)))
             }
-            _ => (None, !running),
+            _ => (None, false),
         };
         let warming = slot
             .warming
@@ -371,12 +380,31 @@ impl ViewSlots {
                 slot.warming = None;
                 return true;
             }
-            Step::Wait => {}
+            Step::Wait => {
+                // A view with nothing to show yet builds its renderer
+                // now, while the warm-up compiles on the other thread (the
+                // frame that asked for the warm-up has been shown).
+                if slot.renderer.is_none() && slot.pending.is_none() {
+                    match Renderer::new(gpu, want.scene(model), want.settings.clone()) {
+                        Ok(mut renderer) => {
+                            if self.timed {
+                                renderer.enable_pass_timing(gpu);
+                            }
+                            slot.pending = Some((renderer, want.clone()));
+                        }
+                        // Building it again when the warm-up is done reports the error.
+                        Err(e) => log::debug!("view {i}: {e}"),
+                    }
+                }
+            }
             Step::Warm => {
-                match self
-                    .warmer
-                    .request(gpu, want.scene(model), want.settings.clone(), keys)
-                {
+                let (scene, settings) = (want.scene(model), want.settings.clone());
+                let request = if slot.renderer.is_none() {
+                    self.warmer.request_first_image(gpu, scene, settings)
+                } else {
+                    self.warmer.request(gpu, scene, settings, keys)
+                };
+                match request {
                     Some(w) => slot.warming = Some(w),
                     None => return true,
                 }
@@ -390,6 +418,14 @@ impl ViewSlots {
             }
         }
         false
+    }
+
+    /// For each of the first `count` views, whether it has nothing to show
+    /// yet: its first pipelines are being compiled ahead.
+    pub fn compiling_first(&self, count: usize) -> Vec<bool> {
+        (self.slots.iter().take(count))
+            .map(|s| s.renderer.is_none() && s.warming.is_some())
+            .collect()
     }
 
     /// How many views wait for a change's (or reloaded shaders')
@@ -605,6 +641,11 @@ mod tests {
         );
         slots.sizes = vec![(16, 12)];
         slots.sync(&gpu, &model, &mut egui).unwrap();
+        // The first view, too, waits for its pipelines' warm-up.
+        assert_eq!(slots.compiling_first(1), [true]);
+        assert!(slots.slots[0].renderer.is_none());
+        wait_for_warm_ups(&gpu, &mut slots, &model, &mut egui);
+        assert_eq!(slots.compiling_first(1), [false]);
         let corner = |slots: &mut ViewSlots| {
             let r = slots.slots[0].renderer.as_mut().expect("a renderer");
             r.render_sample(&gpu).unwrap();
@@ -633,12 +674,7 @@ mod tests {
         assert_eq!(corner(&mut slots), before, "the old shaders draw meanwhile");
 
         model.scene.camera.eye.x += 0.5;
-        let start = std::time::Instant::now();
-        while slots.warming() > 0 {
-            assert!(start.elapsed().as_secs() < 300, "warm-up never finished");
-            std::thread::sleep(std::time::Duration::from_millis(20));
-            slots.sync(&gpu, &model, &mut egui).unwrap();
-        }
+        wait_for_warm_ups(&gpu, &mut slots, &model, &mut egui);
         assert_eq!(
             corner(&mut slots),
             [255, 0, 255],
@@ -649,6 +685,21 @@ mod tests {
             drawn.camera, model.scene.camera,
             "at the camera moved meanwhile"
         );
+    }
+
+    /// Syncs `slots` with `model` until no view waits for a warm-up.
+    fn wait_for_warm_ups(
+        gpu: &Gpu,
+        slots: &mut ViewSlots,
+        model: &Model,
+        egui: &mut egui_wgpu::Renderer,
+    ) {
+        let start = std::time::Instant::now();
+        while slots.warming() > 0 {
+            assert!(start.elapsed().as_secs() < 300, "warm-up never finished");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            slots.sync(gpu, model, egui).unwrap();
+        }
     }
 
     /// A change applies at once where the renderer has its pipelines, and

@@ -3,8 +3,9 @@
 //! reflective material or a light's first shadows stopped the whole window
 //! for 5-11 s (docs/performance.md). The warmer renders one tiny sample of
 //! the changed view on a second device of the same adapter, in a thread of
-//! its own, which fills the driver's shader cache; the view keeps its old
-//! image (the camera still moves it) until then, and its own first frame
+//! its own, and resolves it as the window does, which fills the driver's
+//! shader cache; the view keeps its old image (the camera still moves it;
+//! a new view shows nothing) until then, and its own first frame
 //! afterwards finds the compiled code in the cache. Where the driver keeps
 //! no cache the change still costs its compile when it is applied, as
 //! before.
@@ -31,6 +32,12 @@ struct Job {
     settings: RenderSettings,
     keys: Option<PipelineKeys>,
     shaders: Option<std::sync::Arc<ShaderOverrides>>,
+    /// The format of the texture the view is resolved into, and the
+    /// format it is resolved through ([`Renderer::resolve_into_as`]).
+    resolve: Option<(wgpu::TextureFormat, wgpu::TextureFormat)>,
+    /// Report the job finished after its still frame
+    /// ([`Warmer::request_first_image`]).
+    report_still: bool,
 }
 
 /// One view's change being compiled ahead: its job, and the pipelines that
@@ -50,6 +57,9 @@ pub struct Warmer {
     finished: Option<(u64, Result<PipelineKeys, String>)>,
     next_id: u64,
     thread: Option<JoinHandle<()>>,
+    /// Also compile the resolve into this texture format, through this
+    /// view format ([`Warmer::resolving_into`]).
+    resolve: Option<(wgpu::TextureFormat, wgpu::TextureFormat)>,
 }
 
 impl Warmer {
@@ -65,22 +75,41 @@ impl Warmer {
             .spawn(move || {
                 let mut device: Option<Gpu> = None;
                 for job in inbox {
+                    let start = std::time::Instant::now();
                     if device.is_none() {
                         device = Gpu::from_adapter(instance.clone(), adapter.clone())
                             .inspect_err(|e| log::warn!("pipeline warm-up: no second device: {e}"))
                             .ok();
+                        log::debug!("pipeline warm-up: device opened in {:?}", start.elapsed());
                     }
-                    let result = match &device {
-                        Some(gpu) => {
-                            gpu.set_shader_overrides(job.shaders.as_deref().cloned());
-                            warm(gpu, &job).map_err(|e| e.to_string())
+                    let Some(gpu) = &device else {
+                        let failed = Err("no second device".to_string());
+                        if report.send((job.id, failed)).is_err() {
+                            break;
                         }
-                        None => Err("no second device".to_string()),
+                        continue;
                     };
+                    gpu.set_shader_overrides(job.shaders.as_deref().cloned());
+                    let mut reported = false;
+                    let result = warm_still(gpu, &job).and_then(|(renderer, keys)| {
+                        log::debug!(
+                            "pipeline warm-up {}: still frame at {:?}",
+                            job.id,
+                            start.elapsed()
+                        );
+                        if job.report_still {
+                            // A new view shows its first image now; its
+                            // moving frames compile meanwhile.
+                            reported = report.send((job.id, Ok(keys))).is_ok();
+                        }
+                        warm_moving(gpu, &job, renderer, keys)
+                    });
+                    log::debug!("pipeline warm-up {}: done at {:?}", job.id, start.elapsed());
+                    let result = result.map_err(|e| e.to_string());
                     if let Err(e) = &result {
                         log::warn!("pipeline warm-up: {e}");
                     }
-                    if report.send((job.id, result)).is_err() {
+                    if !reported && report.send((job.id, result)).is_err() {
                         break;
                     }
                 }
@@ -92,7 +121,20 @@ impl Warmer {
             finished: None,
             next_id: 0,
             thread,
+            resolve: None,
         }
+    }
+
+    /// Warm-ups also resolve their sample into a texture of `format`
+    /// through a view of `view_format`, as the window's views are, so that
+    /// the resolve pipeline is compiled ahead too.
+    pub fn resolving_into(
+        mut self,
+        format: wgpu::TextureFormat,
+        view_format: wgpu::TextureFormat,
+    ) -> Warmer {
+        self.resolve = Some((format, view_format));
+        self
     }
 
     /// Queues the compilation of what `scene` with `settings` draws with
@@ -105,6 +147,31 @@ impl Warmer {
         settings: RenderSettings,
         keys: Option<PipelineKeys>,
     ) -> Option<Warming> {
+        self.queue(gpu, scene, settings, keys, false)
+    }
+
+    /// [`Warmer::request`] for a view that has nothing to show yet: it
+    /// finishes once a still frame has been drawn (and resolved), so the
+    /// view's first image comes as early as it can, and then goes on to
+    /// compile what moving frames add (the reproject pass), before the
+    /// next job.
+    pub fn request_first_image(
+        &mut self,
+        gpu: &Gpu,
+        scene: Scene,
+        settings: RenderSettings,
+    ) -> Option<Warming> {
+        self.queue(gpu, scene, settings, None, true)
+    }
+
+    fn queue(
+        &mut self,
+        gpu: &Gpu,
+        scene: Scene,
+        settings: RenderSettings,
+        keys: Option<PipelineKeys>,
+        report_still: bool,
+    ) -> Option<Warming> {
         let id = self.next_id;
         let job = Job {
             id,
@@ -116,6 +183,8 @@ impl Warmer {
             },
             keys,
             shaders: gpu.shader_overrides(),
+            resolve: self.resolve,
+            report_still,
         };
         self.jobs.as_ref()?.send(job).ok()?;
         self.next_id += 1;
@@ -162,23 +231,70 @@ impl Drop for Warmer {
 }
 
 /// One sample of the job's scene at the warm-up size, with its pipelines,
-/// and with temporal reprojection on a second one from a moved camera (a
-/// moving frame, which runs the reproject pass); returns the pipelines it
+/// resolved as the window does; returns the renderer and the pipelines it
 /// drew with.
-fn warm(gpu: &Gpu, job: &Job) -> Result<PipelineKeys, GpuError> {
+fn warm_still(gpu: &Gpu, job: &Job) -> Result<(Renderer, PipelineKeys), GpuError> {
     let mut renderer = Renderer::new(gpu, job.scene.clone(), job.settings.clone())?;
     if let Some(keys) = &job.keys {
         renderer.use_pipelines(gpu, keys)?;
     }
     renderer.render_sample(gpu)?;
-    let mut drew = renderer.pipeline_keys();
+    if let Some((format, view_format)) = job.resolve {
+        resolve_once(gpu, &mut renderer, format, view_format)?;
+    }
+    gpu.wait_idle()?;
+    let keys = renderer.pipeline_keys();
+    Ok((renderer, keys))
+}
+
+/// With temporal reprojection on, a second sample from a moved camera (a
+/// moving frame, which runs the reproject pass); returns the pipelines
+/// `renderer` drew with, `drew` and the reproject pass where it ran.
+fn warm_moving(
+    gpu: &Gpu,
+    job: &Job,
+    mut renderer: Renderer,
+    mut drew: PipelineKeys,
+) -> Result<PipelineKeys, GpuError> {
     if drew.reproject {
         let mut camera = job.scene.camera.clone();
         camera.eye += (camera.target - camera.eye) * 0.01;
         renderer.set_camera(camera);
         renderer.render_sample(gpu)?;
         drew.reproject = renderer.last_frame_moved();
+        gpu.wait_idle()?;
     }
-    gpu.wait_idle()?;
     Ok(drew)
+}
+
+/// Resolves `renderer`'s image once into a new texture of `format`, through
+/// a view of `view_format` (which compiles that resolve pipeline).
+fn resolve_once(
+    gpu: &Gpu,
+    renderer: &mut Renderer,
+    format: wgpu::TextureFormat,
+    view_format: wgpu::TextureFormat,
+) -> Result<(), GpuError> {
+    let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("warm-up resolve"),
+        size: wgpu::Extent3d {
+            width: WARM_SIZE,
+            height: WARM_SIZE,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[view_format],
+    });
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("warm-up resolve"),
+        });
+    renderer.resolve_into_as(gpu, &mut encoder, &target, view_format)?;
+    gpu.queue.submit([encoder.finish()]);
+    Ok(())
 }
