@@ -9,6 +9,7 @@
 @group(1) @binding(0) var<uniform> frame: FrameUniforms;
 // Bindings 1-3 and 6-8: the G-buffer (lib/gbuffer.wgsl).
 #include "lib/gbuffer.wgsl"
+#include "lib/outline.wgsl"
 @group(1) @binding(4) var<storage, read_write> accum: array<vec4<f32>>;
 // From shaders/outline_tiles.wgsl, run just before: 1 where a pixel of
 // this workgroup's tile may take an outline (an outlined object in reach,
@@ -20,40 +21,58 @@
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP;
 // MAX_OUTLINE_RADIUS (outlines wider than this many pixels are drawn this
 // wide); TILE_TEXELS, the workgroup tile with its halo,
-// (ACCUMULATE_WORKGROUP + 2 * MAX_OUTLINE_RADIUS)^2 texels at most.
+// (ACCUMULATE_WORKGROUP + 2 * MAX_OUTLINE_RADIUS)^2 texels at most;
+// TILE_ROW_TEXELS, its rows by the workgroup's columns.
 // DEPTH_JUMP (lib/limits.wgsl): q is in front of p when its view depth is
 // smaller by this fraction.
 // Normals more than 60 degrees apart make a crease.
 const CREASE_COS: f32 = 0.5;
+// From this outline radius on, each pixel first proves, in O(r) steps,
+// whether its search could find anything (pixel_needs_search), and only
+// the pixels that could search: below it, the proof costs more than the
+// (2r + 1)^2 search it saves.
+const PIXEL_PROOF_MIN_RADIUS: i32 = 3;
+// Per texel of the tile (pixel_needs_search): SOURCE_BIT where it draws
+// outlines on other pixels (its material's outline is 1 px or wider);
+// ROUGH_BIT where it is not provably the smooth inside of one object
+// together with its right and lower neighbours; UNEVEN_BIT where an
+// object's texel fails the test on its own (lib/outline.wgsl,
+// smooth_texel), so that the search may find an edge between the pixel
+// and itself.
+const SOURCE_BIT: u32 = 1u;
+const ROUGH_BIT: u32 = 2u;
+const UNEVEN_BIT: u32 = 4u;
 
 // The G-buffer around this workgroup's pixels, loaded once and shared, so
 // the outline search reads workgroup memory rather than textures.
 var<workgroup> tile_id: array<u32, TILE_TEXELS>;
 var<workgroup> tile_normal_depth: array<vec4<f32>, TILE_TEXELS>;
-var<workgroup> tile_material: array<u32, TILE_TEXELS>;
 // The square of the texel's outline width, or -1 on the background: the
 // search's first test reads this one array.
 var<workgroup> tile_width2: array<f32, TILE_TEXELS>;
+// SOURCE_BIT and ROUGH_BIT per texel, then, per row of the tile and
+// column of the workgroup, those bits ORed over the 2r + 1 texels
+// centred on that column (pixel_needs_search). The lavapipe limit of
+// 32 KiB of workgroup memory holds all of these at the widest radius.
+var<workgroup> tile_bits: array<u32, TILE_TEXELS>;
+var<workgroup> row_bits: array<u32, TILE_ROW_TEXELS>;
 fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
     let size = vec2<i32>(frame.size_px);
     for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
         let q = origin + vec2<i32>(k % span, k / span);
         var id = 0u;
         var nd = vec4<f32>(0.0);
-        var material = 0u;
         var width2 = -1.0;
         if all(q >= vec2<i32>(0)) && all(q < size) {
             id = gbuffer_id(q);
             if id != 0u {
                 nd = gbuffer_normal_depth(q);
-                material = instances[id - 1u].material;
-                let width = materials[material].outline_width_px;
+                let width = materials[instances[id - 1u].material].outline_width_px;
                 width2 = width * width;
             }
         }
         tile_id[k] = id;
         tile_normal_depth[k] = nd;
-        tile_material[k] = material;
         tile_width2[k] = width2;
     }
 }
@@ -68,7 +87,7 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
     let id_p = tile_id[k_p];
     let nd_p = tile_normal_depth[k_p];
     var best_depth = 3.0e38;
-    var best_material = 0xffffffffu;
+    var best_id = 0u;
     // No texel farther than the widest outline can reach p. Below the cap,
     // frame.max_outline_px is that width, so each row of the search spans
     // only the disk's chord (its half-width floored, with a margin over the
@@ -99,14 +118,78 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
             }
             if edge && nd_q.w < best_depth {
                 best_depth = nd_q.w;
-                best_material = tile_material[k];
+                best_id = id_q;
             }
         }
     }
-    if best_material == 0xffffffffu {
+    if best_id == 0u {
         return vec4<f32>(0.0);
     }
-    return vec4<f32>(materials[best_material].outline_color, 1.0);
+    return vec4<f32>(materials[instances[best_id - 1u].material].outline_color, 1.0);
+}
+
+// SOURCE_BIT and ROUGH_BIT of every texel of the loaded tile (span x span).
+// A pair with a neighbour outside the tile is in no searched pixel's
+// square, so it is not checked.
+fn mark_texels(span: i32, r: i32, first: u32) {
+    let bounds = smooth_step_bounds(r);
+    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
+        let id = tile_id[k];
+        let nd = tile_normal_depth[k];
+        let alone = smooth_texel(nd);
+        var even = id != 0u && alone;
+        if even && k % span + 1 < span {
+            even = tile_id[k + 1] == id && smooth_pair(nd, tile_normal_depth[k + 1], bounds);
+        }
+        if even && k / span + 1 < span {
+            even = tile_id[k + span] == id && smooth_pair(nd, tile_normal_depth[k + span], bounds);
+        }
+        tile_bits[k] = select(0u, SOURCE_BIT, tile_width2[k] >= 1.0) | select(ROUGH_BIT, 0u, even)
+            | select(0u, UNEVEN_BIT, id != 0u && !alone);
+    }
+}
+
+// Per tile row and workgroup column x, the texel bits ORed over tile
+// columns x .. x + 2r (the 2r + 1 texels centred on pixel column x).
+fn or_rows(span: i32, r: i32, first: u32) {
+    let w = i32(ACCUMULATE_WORKGROUP);
+    for (var e = i32(first); e < span * w; e += w * w) {
+        let row = (e / w) * span + e % w;
+        var bits = 0u;
+        for (var dx = 0; dx <= 2 * r; dx++) {
+            bits |= tile_bits[row + dx];
+        }
+        row_bits[e] = bits;
+    }
+}
+
+// Whether the pixel at workgroup position l could take an outline, from
+// the bits of the (2r + 1)^2 square its search covers (or_rows, then the
+// column here). The search takes only texels q within their own outline
+// width of the pixel p: p itself, or a source (a texel 1 px away or more
+// needs a width of 1 px or more). So without a source in the square,
+// only p itself can make an edge with p: a background pixel never does,
+// an object's pixel only where it fails smooth_texel on its own
+// (UNEVEN_BIT). With a source in the square, a background pixel takes
+// its outline; an object's pixel takes one only from a texel of another
+// object or the background, or across a depth edge or a crease. Where
+// every texel of the square is smooth with its right and lower
+// neighbours (same object, lib/outline.wgsl's per-step bounds), any two
+// texels the search compares are joined by a path of at most 2r such
+// steps inside the square, so no pair makes an edge (outline_tiles.wgsl's
+// argument, for one pixel's square rather than a tile's).
+fn pixel_needs_search(l: vec2<i32>, span: i32, r: i32) -> bool {
+    let w = i32(ACCUMULATE_WORKGROUP);
+    var bits = 0u;
+    for (var dy = 0; dy <= 2 * r; dy++) {
+        bits |= row_bits[(l.y + dy) * w + l.x];
+    }
+    let centre = (l.y + r) * span + l.x + r;
+    if (tile_bits[centre] & UNEVEN_BIT) != 0u {
+        return true;
+    }
+    let background = tile_id[centre] == 0u;
+    return (bits & SOURCE_BIT) != 0u && (background || (bits & ROUGH_BIT) != 0u);
 }
 
 @compute @workgroup_size(ACCUMULATE_WORKGROUP, ACCUMULATE_WORKGROUP)
@@ -123,15 +206,25 @@ fn main(
     // Tiles that nothing can outline skip the tile, its barrier and the
     // search (the whole workgroup agrees, so the CPU driver skips the code).
     let outlined = r > 0 && tile_marks[wg.y * tiles_x + wg.x] != 0u;
+    var search = outlined;
     if outlined {
         load_tile(vec2<i32>(wg.xy * ACCUMULATE_WORKGROUP) - vec2<i32>(r), span, li);
         workgroupBarrier();
+        // Wide outlines: only the pixels whose search could find something
+        // search (the CPU driver skips it for 8 neighbours that all agree).
+        if r >= PIXEL_PROOF_MIN_RADIUS {
+            mark_texels(span, r, li);
+            workgroupBarrier();
+            or_rows(span, r, li);
+            workgroupBarrier();
+            search = pixel_needs_search(vec2<i32>(lid.xy), span, r);
+        }
     }
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
         return;
     }
     var c = gbuffer_color(vec2<i32>(gid.xy));
-    if outlined {
+    if search {
         let o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
         c = mix(c, o.rgb, o.a);
     }

@@ -37,6 +37,7 @@
 // Bindings 2, 3, 7 and 8: the G-buffer's normal + depth and ids
 // (lib/gbuffer.wgsl).
 #include "lib/gbuffer.wgsl"
+#include "lib/outline.wgsl"
 // One word per accumulate workgroup, row by row: 1 where the tile may
 // take an outline.
 @group(1) @binding(4) var<storage, read_write> tile_marks: array<u32>;
@@ -44,13 +45,6 @@
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP (the tile's
 // side), MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP and DEPTH_JUMP.
 
-// Whether two neighbouring texels (normal xyz, view depth w), each already
-// checked on its own, are close enough for way 2 with per-step bounds
-// depth_step and cos_step. Written so that a NaN anywhere fails it.
-fn smooth_pair(a: vec4<f32>, b: vec4<f32>, depth_step: f32, cos_step: f32) -> bool {
-    return a.w >= b.w * depth_step && b.w >= a.w * depth_step
-        && dot(a.xyz, b.xyz) >= cos_step * sqrt(dot(a.xyz, a.xyz) * dot(b.xyz, b.xyz));
-}
 
 fn outline_width(id: u32) -> f32 {
     return materials[instances[id - 1u].material].outline_width_px;
@@ -70,12 +64,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let lo = max(tile - vec2<i32>(r), vec2<i32>(0));
     let hi = min(core_hi + vec2<i32>(r), size);
 
-    // Way 2's per-step bounds for paths of L = 2r steps: depths within
-    // 0.96 end to end (an edge is DEPTH_JUMP = 5%), normals within 54
-    // degrees (0.9 of accumulate.wgsl's 60-degree CREASE_COS).
-    let steps = f32(2 * max(r, 1));
-    let depth_step = pow(1.0 - 0.8 * DEPTH_JUMP, 1.0 / steps);
-    let cos_step = cos(radians(54.0) / steps);
+    // Way 2's per-step bounds for paths of L = 2r steps (lib/outline.wgsl).
+    let bounds = smooth_step_bounds(r);
 
     var any_source = false;
     // Still possibly the smooth inside of one object (way 2). Only worth
@@ -104,16 +94,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             if quiet {
                 let nd = gbuffer_normal_depth(q);
-                // Each texel on its own (it also meets the search as p = q):
-                // in front of the eye, its normal at least 0.949 long. The
-                // left and upper neighbours passed this when they were read.
-                quiet = nd.w > 0.0 && dot(nd.xyz, nd.xyz) >= 0.9;
+                // Each texel on its own; the left and upper neighbours
+                // passed this when they were read.
+                quiet = smooth_texel(nd);
                 if x > lo.x {
-                    quiet = quiet && smooth_pair(nd, left, depth_step, cos_step);
+                    quiet = quiet && smooth_pair(nd, left, bounds);
                 }
                 if y > lo.y {
                     let up = gbuffer_normal_depth(q - vec2<i32>(0, 1));
-                    quiet = quiet && smooth_pair(nd, up, depth_step, cos_step);
+                    quiet = quiet && smooth_pair(nd, up, bounds);
                 }
                 left = nd;
             }

@@ -43,6 +43,11 @@ pub fn u32_limits() -> Vec<U32Limit> {
             "TILE_TEXELS",
             (twins::ACCUMULATE_WORKGROUP + 2 * twins::MAX_OUTLINE_RADIUS).pow(2),
         ),
+        (
+            "TILE_ROW_TEXELS",
+            (twins::ACCUMULATE_WORKGROUP + 2 * twins::MAX_OUTLINE_RADIUS)
+                * twins::ACCUMULATE_WORKGROUP,
+        ),
         ("TRACE_WORKGROUP", twins::TRACE_WORKGROUP),
         ("TRACED_ROW_ALIGN_PX", twins::TRACED_ROW_ALIGN_PX),
         ("LIGHTS_DYNAMIC", twins::LIGHTS_DYNAMIC),
@@ -119,6 +124,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         include_str!("../../shaders/lib/trace_rq.wgsl"),
     ),
     ("lib/csg.wgsl", include_str!("../../shaders/lib/csg.wgsl")),
+    (
+        "lib/outline.wgsl",
+        include_str!("../../shaders/lib/outline.wgsl"),
+    ),
     (
         "lib/scene_bindings.wgsl",
         include_str!("../../shaders/lib/scene_bindings.wgsl"),
