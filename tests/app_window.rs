@@ -112,6 +112,36 @@ fn run_celray_env(
     }
 }
 
+/// The views' pipelines are compiled ahead on the warm-up thread, which
+/// the first frame starts: so the window shows a frame (the panel) before
+/// the views' first image, however fast the compile. Were they compiled
+/// inside the first frame, both would be the same frame. Reads the
+/// `startup:` line of `--report-frame-times`.
+fn assert_window_answered_before_the_views(stdout: &[u8]) {
+    let stdout = String::from_utf8_lossy(stdout);
+    let startup = stdout
+        .lines()
+        .find(|l| l.starts_with("startup:"))
+        .unwrap_or_else(|| panic!("no startup line in:\n{stdout}"));
+    let ms_after = |what: &str| -> f64 {
+        let rest = &startup[startup.find(what).expect(what) + what.len()..];
+        rest.split(" ms")
+            .next()
+            .unwrap()
+            .trim()
+            .parse()
+            .expect(startup)
+    };
+    let (first, shown) = (
+        ms_after("first window frame after"),
+        ms_after("every view shown after"),
+    );
+    assert!(
+        first < shown,
+        "the first window frame waited for the views: {startup}"
+    );
+}
+
 fn luma(p: &image::Rgb<u8>) -> f32 {
     0.2126 * f32::from(p[0]) + 0.7152 * f32::from(p[1]) + 0.0722 * f32::from(p[2])
 }
@@ -139,32 +169,7 @@ fn window_screenshot_shows_the_scene_and_the_panel() {
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "celray view failed:\n{stderr}");
-    // The view's pipelines are compiled ahead on the warm-up thread, which
-    // the first frame starts: so the window shows a frame (the panel)
-    // before the view's first image, however fast the compile. Were they
-    // compiled inside the first frame, both would be the same frame.
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let startup = stdout
-        .lines()
-        .find(|l| l.starts_with("startup:"))
-        .unwrap_or_else(|| panic!("no startup line in:\n{stdout}"));
-    let ms_after = |what: &str| -> f64 {
-        let rest = &startup[startup.find(what).expect(what) + what.len()..];
-        rest.split(" ms")
-            .next()
-            .unwrap()
-            .trim()
-            .parse()
-            .expect(startup)
-    };
-    let (first, shown) = (
-        ms_after("first window frame after"),
-        ms_after("every view shown after"),
-    );
-    assert!(
-        first < shown,
-        "the first window frame waited for the view: {startup}"
-    );
+    assert_window_answered_before_the_views(&out.stdout);
     let img = image::open(dir.join("window.png"))
         .expect("the screenshot was written")
         .to_rgb8();
@@ -331,32 +336,7 @@ fn camera_path_drives_the_view() {
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "celray view failed:\n{stderr}");
-    // The view's pipelines are compiled ahead on the warm-up thread, which
-    // the first frame starts: so the window shows a frame (the panel)
-    // before the view's first image, however fast the compile. Were they
-    // compiled inside the first frame, both would be the same frame.
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let startup = stdout
-        .lines()
-        .find(|l| l.starts_with("startup:"))
-        .unwrap_or_else(|| panic!("no startup line in:\n{stdout}"));
-    let ms_after = |what: &str| -> f64 {
-        let rest = &startup[startup.find(what).expect(what) + what.len()..];
-        rest.split(" ms")
-            .next()
-            .unwrap()
-            .trim()
-            .parse()
-            .expect(startup)
-    };
-    let (first, shown) = (
-        ms_after("first window frame after"),
-        ms_after("every view shown after"),
-    );
-    assert!(
-        first < shown,
-        "the first window frame waited for the view: {startup}"
-    );
+    assert_window_answered_before_the_views(&out.stdout);
     let img = image::open(dir.join("window.png"))
         .expect("the screenshot was written")
         .to_rgb8();
