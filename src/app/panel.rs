@@ -178,6 +178,9 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
                 .small(),
             );
         }
+        (None, true) if info.compiling.contains(&true) => {
+            ui.label(RichText::new("GPU: (no passes yet: the views' shaders compile)").small());
+        }
         (None, true) => {
             ui.label(RichText::new("GPU: (converged, no passes to time)").small());
         }
