@@ -50,7 +50,7 @@ var<workgroup> tile_normal_depth: array<vec4<f32>, TILE_TEXELS>;
 // The square of the texel's outline width, or -1 on the background: the
 // search's first test reads this one array.
 var<workgroup> tile_width2: array<f32, TILE_TEXELS>;
-// SOURCE_BIT and ROUGH_BIT per texel, then, per row of the tile and
+// The bits per texel, then, per row of the tile and
 // column of the workgroup, those bits ORed over the 2r + 1 texels
 // centred on that column (pixel_needs_search). The lavapipe limit of
 // 32 KiB of workgroup memory holds all of these at the widest radius.
@@ -128,7 +128,8 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
     return vec4<f32>(materials[instances[best_id - 1u].material].outline_color, 1.0);
 }
 
-// SOURCE_BIT and ROUGH_BIT of every texel of the loaded tile (span x span).
+// SOURCE_BIT, ROUGH_BIT and UNEVEN_BIT of every texel of the loaded tile
+// (span x span).
 // A pair with a neighbour outside the tile is in no searched pixel's
 // square, so it is not checked.
 fn mark_texels(span: i32, r: i32, first: u32) {

@@ -139,8 +139,8 @@ impl FrameTimer {
     }
 }
 
-/// How the window started, in ms from the app's start (the window and
-/// device opened, nothing compiled yet): its first presented frame, the
+/// How the window started, in ms from the app's start (before its window
+/// and device open): its first presented frame, the
 /// first that showed every view (their first pipelines compiled), and the
 /// longest wait between presented frames up to then (a stall of the
 /// window, as its user sees it).

@@ -96,6 +96,20 @@ fn view_texture(gpu: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> wgp
     })
 }
 
+/// A view's renderer, timing its passes where the window has a timer.
+fn new_renderer(
+    gpu: &Gpu,
+    scene: Scene,
+    settings: RenderSettings,
+    timed: bool,
+) -> Result<Renderer, GpuError> {
+    let mut renderer = Renderer::new(gpu, scene, settings)?;
+    if timed {
+        renderer.enable_pass_timing(gpu);
+    }
+    Ok(renderer)
+}
+
 /// The format the views are resolved through: the sRGB twin of the image's
 /// format, so the target encodes as it stores (cheaper on the CPU driver
 /// than the resolve shader's own encoding, and the same bytes a capture
@@ -328,14 +342,7 @@ impl ViewSlots {
                         built.set_camera(want.camera.clone());
                         built
                     }
-                    _ => {
-                        let mut renderer =
-                            Renderer::new(gpu, want.scene(model), want.settings.clone())?;
-                        if timed {
-                            renderer.enable_pass_timing(gpu);
-                        }
-                        renderer
-                    }
+                    _ => new_renderer(gpu, want.scene(model), want.settings.clone(), timed)?,
                 };
                 slot.renderer = Some(renderer);
             }
@@ -385,13 +392,8 @@ impl ViewSlots {
                 // now, while the warm-up compiles on the other thread (the
                 // frame that asked for the warm-up has been shown).
                 if slot.renderer.is_none() && slot.pending.is_none() {
-                    match Renderer::new(gpu, want.scene(model), want.settings.clone()) {
-                        Ok(mut renderer) => {
-                            if self.timed {
-                                renderer.enable_pass_timing(gpu);
-                            }
-                            slot.pending = Some((renderer, want.clone()));
-                        }
+                    match new_renderer(gpu, want.scene(model), want.settings.clone(), self.timed) {
+                        Ok(renderer) => slot.pending = Some((renderer, want.clone())),
                         // Building it again when the warm-up is done reports the error.
                         Err(e) => log::debug!("view {i}: {e}"),
                     }
@@ -513,11 +515,7 @@ impl ViewSlots {
                 let Some(old) = &slot.renderer else {
                     return Ok(None);
                 };
-                let mut renderer = Renderer::new(gpu, old.scene().clone(), old.settings().clone())?;
-                if timed {
-                    renderer.enable_pass_timing(gpu);
-                }
-                Ok(Some(renderer))
+                new_renderer(gpu, old.scene().clone(), old.settings().clone(), timed).map(Some)
             })
             .collect::<Result<Vec<_>, GpuError>>()?;
         for (slot, new) in self.slots.iter_mut().zip(rebuilt) {
