@@ -817,7 +817,8 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
         if let Some(t) = app::timing::mean_pass_times(&report.pass_times) {
             println!(
                 "GPU per frame (mean of {} timed frames that sampled, all views): raster {:.2} ms, \
-                 trace {:.2} ms, outline+accumulate {:.2} ms, resolve {:.2} ms, egui {:.2} ms",
+                 trace {:.2} ms, outline+accumulate {:.2} ms, resolve {:.2} ms, copy {:.2} ms, \
+                 egui {:.2} ms",
                 report
                     .pass_times
                     .iter()
@@ -827,8 +828,12 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
                 t.trace_ms,
                 t.accumulate_ms,
                 t.resolve_ms,
+                t.copy_ms,
                 t.egui_ms
             );
+        }
+        if let Some(c) = report.window_cpu {
+            println!("window CPU per frame (mean): egui {:.2} ms", c.ui_ms);
         }
     }
     if let Some(path) = &args.screenshot {

@@ -18,7 +18,7 @@ use super::panel::{self, PanelInfo};
 use super::reload::HotReload;
 use super::screenshot;
 use super::surface::{read_rgba8, Acquired, WindowSurface};
-use super::timing::{FrameStats, FrameTimer, PassTimes, Startup};
+use super::timing::{FrameStats, FrameTimer, PassTimes, Startup, WindowCpuTimes};
 use super::view_ui::{views_ui, ViewArea};
 use super::views::ViewSlots;
 use super::{AppError, RunReport, ViewOptions};
@@ -59,6 +59,10 @@ pub(super) struct LiveApp {
     /// When the app started, and how its first frames went.
     started: Instant,
     startup: Startup,
+    /// The window's own CPU work per frame: smoothed for the panel, and
+    /// every counted frame's for `--report-frame-times`.
+    window_cpu: WindowCpuTimes,
+    window_cpu_times: Vec<WindowCpuTimes>,
 }
 
 impl LiveApp {
@@ -106,6 +110,8 @@ impl LiveApp {
             },
             started,
             startup: Startup::default(),
+            window_cpu: WindowCpuTimes::default(),
+            window_cpu_times: Vec::new(),
         };
         if o.watch {
             live.rewatch(proxy);
@@ -132,6 +138,7 @@ impl LiveApp {
             samples: self.views.samples(self.model.layout.view_count()),
             pass_times: self.pass_times.clone(),
             startup: self.startup.clone(),
+            window_cpu: WindowCpuTimes::mean(&self.window_cpu_times),
         }
     }
 
@@ -158,7 +165,9 @@ impl LiveApp {
         };
         self.fly();
         let vsync_before = self.model.vsync;
+        let ui_start = Instant::now();
         let (ui, area) = self.run_ui();
+        let mut ui_ms = ui_start.elapsed().as_secs_f64() * 1e3;
         self.apply_edits(&area, ui.pixels_per_point, vsync_before);
         let sampled = self.sample_views();
         // Frames before every shown view draws (its first pipelines still
@@ -175,7 +184,8 @@ impl LiveApp {
         let want_shot = std::mem::take(&mut self.model.requests.screenshot)
             || (last_frame && self.run.screenshot.is_some());
         let repaint_delay = ui.repaint_delay;
-        let shot = self.draw_and_present(frame, ui, &area.rects, want_shot);
+        let (shot, prepare_ms) = self.draw_and_present(frame, ui, &area.rects, want_shot);
+        ui_ms += prepare_ms;
         let since_start = self.started.elapsed().as_secs_f64() * 1e3;
         self.startup.presented(since_start, counted);
         if suboptimal {
@@ -184,6 +194,11 @@ impl LiveApp {
         self.collect_times(sampled);
         if counted {
             self.stats.tick(self.run.keep_times);
+            let cpu = WindowCpuTimes { ui_ms };
+            self.window_cpu = self.window_cpu.smoothed(cpu);
+            if self.run.keep_times {
+                self.window_cpu_times.push(cpu);
+            }
         } else {
             self.stats.pause();
         }
@@ -222,6 +237,7 @@ impl LiveApp {
             accel: self.views.accel_info(),
             warming: self.views.warming(),
             compiling: (self.views).compiling_first(self.model.layout.view_count()),
+            window_cpu: self.window_cpu,
         };
         let textures = self.views.texture_ids();
         let model = &mut self.model;
@@ -296,14 +312,16 @@ impl LiveApp {
     }
 
     /// Resolves the changed views, composes the window (and, when wanted,
-    /// its copy for a screenshot), submits and presents. Returns the copy.
+    /// its copy for a screenshot), submits and presents. Returns the copy,
+    /// and the CPU ms egui's paint preparation took (tessellation and
+    /// uploads).
     fn draw_and_present(
         &mut self,
         frame: wgpu::SurfaceTexture,
         ui: OverlayFrame,
         rects: &[Rect],
         want_shot: bool,
-    ) -> Option<wgpu::Texture> {
+    ) -> (Option<wgpu::Texture>, f64) {
         let mut encoder = self
             .gpu
             .device
@@ -313,7 +331,9 @@ impl LiveApp {
         self.resolve_views(&mut encoder);
         let ppp = ui.pixels_per_point;
         let size = [self.surface.config.width, self.surface.config.height];
+        let prepare_start = Instant::now();
         let mut paint = self.overlay.prepare(&self.gpu, &mut encoder, ui, size);
+        let prepare_ms = prepare_start.elapsed().as_secs_f64() * 1e3;
         let images = self.views.images();
         let placements = if self.surface.direct {
             let m = &self.model;
@@ -327,9 +347,14 @@ impl LiveApp {
             screen: &paint.screen,
         };
         if let Some(t) = &mut self.timer {
+            t.copy_begin(&mut encoder);
+        }
+        let load = (self.surface).compose_views(&mut encoder, &frame.texture, &placements);
+        if let Some(t) = &mut self.timer {
+            t.copy_end(&mut encoder);
             t.egui_begin(&mut encoder);
         }
-        (self.surface).compose(&mut encoder, &frame.texture, &placements, &overlay);
+        (self.surface).compose_overlay(&mut encoder, &frame.texture, load, &overlay);
         if let Some(t) = &mut self.timer {
             t.egui_end(&mut encoder);
         }
@@ -352,7 +377,7 @@ impl LiveApp {
         self.surface.window.pre_present_notify();
         self.gpu.queue.present(frame);
         self.overlay.free_textures(&paint);
-        shot
+        (shot, prepare_ms)
     }
 
     /// Records the resolve of every view whose image changed.

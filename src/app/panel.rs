@@ -8,7 +8,7 @@ use glam::Vec3;
 use super::controller::NavMode;
 use super::layout::Layout;
 use super::model::Model;
-use super::timing::PassTimes;
+use super::timing::{PassTimes, WindowCpuTimes};
 use crate::gpu::twins::MAX_OUTLINE_RADIUS;
 use crate::render::{AccelChoice, RenderMode, Temporal, ToneMap, MAX_BOUNCES, MAX_SPP};
 use crate::sampling::PixelPattern;
@@ -39,6 +39,8 @@ pub struct PanelInfo<'a> {
     pub warming: usize,
     /// Per shown view, whether it waits for its first pipelines.
     pub compiling: Vec<bool>,
+    /// The window's own CPU work per frame (smoothed).
+    pub window_cpu: WindowCpuTimes,
 }
 
 /// A combo box over `options`, named by `name`: one line per enum field.
@@ -172,8 +174,8 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
         (Some(t), _) => {
             ui.label(
                 RichText::new(format!(
-                    "GPU: raster {:.2}  trace {:.2}  outline+accum {:.2}  resolve {:.2}  egui {:.2} ms",
-                    t.raster_ms, t.trace_ms, t.accumulate_ms, t.resolve_ms, t.egui_ms
+                    "GPU: raster {:.2}  trace {:.2}  outline+accum {:.2}  resolve {:.2}  copy {:.2}  egui {:.2} ms",
+                    t.raster_ms, t.trace_ms, t.accumulate_ms, t.resolve_ms, t.copy_ms, t.egui_ms
                 ))
                 .small(),
             );
@@ -188,6 +190,7 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
             ui.label(RichText::new("GPU pass times: no timestamp queries here").small());
         }
     }
+    ui.label(RichText::new(format!("window CPU: egui {:.2} ms", info.window_cpu.ui_ms)).small());
     let file = model
         .scene_path
         .as_ref()

@@ -270,8 +270,21 @@ impl WindowSurface {
         placements: &[Placement],
         overlay: &OverlayDraw,
     ) {
+        let load = self.compose_views(encoder, target, placements);
+        self.compose_overlay(encoder, target, load, overlay);
+    }
+
+    /// The first half of [`WindowSurface::compose`]: where the views are
+    /// copied in, clears `target` and copies them; returns how the overlay
+    /// pass is to load `target`.
+    pub fn compose_views(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::Texture,
+        placements: &[Placement],
+    ) -> wgpu::LoadOp<wgpu::Color> {
         let view = target.create_view(&Default::default());
-        let load = if self.direct {
+        if self.direct {
             // Clear, copy the views in, then draw egui over them.
             drop(encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("clear window"),
@@ -290,7 +303,19 @@ impl WindowSurface {
             wgpu::LoadOp::Load
         } else {
             wgpu::LoadOp::Clear(BACKGROUND)
-        };
+        }
+    }
+
+    /// The second half of [`WindowSurface::compose`]: egui's pass over
+    /// `target`, loaded as [`WindowSurface::compose_views`] said.
+    pub fn compose_overlay(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::Texture,
+        load: wgpu::LoadOp<wgpu::Color>,
+        overlay: &OverlayDraw,
+    ) {
+        let view = target.create_view(&Default::default());
         let mut pass = encoder
             .begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("egui pass"),

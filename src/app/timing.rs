@@ -17,6 +17,10 @@ pub struct PassTimes {
     /// The accumulate (with outlines) and reproject passes.
     pub accumulate_ms: f64,
     pub resolve_ms: f64,
+    /// The views' images copied into the window (where it can be copied
+    /// into; where egui draws them, that is in `egui_ms`).
+    pub copy_ms: f64,
+    /// egui drawing the panel and labels over the window.
     pub egui_ms: f64,
     /// Views that rendered a timed sample in that frame.
     pub views_sampled: u32,
@@ -29,6 +33,7 @@ pub struct PassTimes {
 pub struct FrameTimer {
     timer: GpuTimer,
     resolve: Span,
+    copy: Span,
     egui: Span,
     /// Each view slot's pass times read back since the last frame result
     /// (a later sample's replace an earlier one's: one sample per view).
@@ -40,13 +45,15 @@ pub struct FrameTimer {
 impl FrameTimer {
     /// `None` when the device lacks timestamp queries inside encoders.
     pub fn new(gpu: &Gpu) -> Option<FrameTimer> {
-        let (timer, [resolve, egui]) = GpuTimer::new(gpu, "window frame", ["resolve", "egui"])?;
+        let (timer, [resolve, copy, egui]) =
+            GpuTimer::new(gpu, "window frame", ["resolve", "copy", "egui"])?;
         if !timer.stamps_inside_encoders() {
             return None;
         }
         Some(FrameTimer {
             timer,
             resolve,
+            copy,
             egui,
             views: Vec::new(),
             timing_this_frame: false,
@@ -65,6 +72,12 @@ impl FrameTimer {
     }
     pub fn resolve_end(&mut self, encoder: &mut wgpu::CommandEncoder) {
         self.timer.stamp_end(encoder, self.resolve);
+    }
+    pub fn copy_begin(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        self.timer.stamp_begin(encoder, self.copy);
+    }
+    pub fn copy_end(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        self.timer.stamp_end(encoder, self.copy);
     }
     pub fn egui_begin(&mut self, encoder: &mut wgpu::CommandEncoder) {
         self.timer.stamp_begin(encoder, self.egui);
@@ -125,6 +138,7 @@ impl FrameTimer {
         if self.timer.collect().is_some() {
             let times = PassTimes {
                 resolve_ms: self.timer.span_ms(self.resolve).unwrap_or(0.0),
+                copy_ms: self.timer.span_ms(self.copy).unwrap_or(0.0),
                 egui_ms: self.timer.span_ms(self.egui).unwrap_or(0.0),
                 ..self.take_view_times()
             };
@@ -136,6 +150,39 @@ impl FrameTimer {
         }
         self.timing_this_frame = false;
         came_in
+    }
+}
+
+/// CPU milliseconds of the window's own work in one frame: running egui
+/// (the panel, labels and gestures) and preparing its paint (tessellation
+/// and uploads). Not here: presenting, whose call on the CPU driver also
+/// waits for the frame's GPU work, so that its time is not the window's.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct WindowCpuTimes {
+    pub ui_ms: f64,
+}
+
+impl WindowCpuTimes {
+    /// The mean of `times`, `None` when empty.
+    pub fn mean(times: &[WindowCpuTimes]) -> Option<WindowCpuTimes> {
+        if times.is_empty() {
+            return None;
+        }
+        let n = times.len() as f64;
+        Some(WindowCpuTimes {
+            ui_ms: times.iter().map(|t| t.ui_ms).sum::<f64>() / n,
+        })
+    }
+
+    /// `self` moved a tenth of the way towards `next` (the panel's
+    /// steady figure); `next` itself the first time.
+    pub fn smoothed(self, next: WindowCpuTimes) -> WindowCpuTimes {
+        if self == WindowCpuTimes::default() {
+            return next;
+        }
+        WindowCpuTimes {
+            ui_ms: self.ui_ms * 0.9 + next.ui_ms * 0.1,
+        }
     }
 }
 
@@ -226,6 +273,7 @@ pub fn mean_pass_times(times: &[PassTimes]) -> Option<PassTimes> {
         trace_ms: mean(|t| t.trace_ms),
         accumulate_ms: mean(|t| t.accumulate_ms),
         resolve_ms: mean(|t| t.resolve_ms),
+        copy_ms: mean(|t| t.copy_ms),
         egui_ms: mean(|t| t.egui_ms),
         views_sampled: sampled[0].views_sampled,
     })
@@ -257,5 +305,35 @@ mod tests {
         assert_eq!(p95, 5.0);
         assert_eq!(max, 5.0);
         assert!(summarize(&ms, 6).is_none());
+    }
+
+    /// The report's mean is the plain mean; the panel's figure starts at
+    /// the first frame's and then moves a tenth of the way to each next.
+    #[test]
+    fn window_cpu_times_mean_and_smoothing() {
+        let t = |ui_ms| WindowCpuTimes { ui_ms };
+        assert_eq!(
+            WindowCpuTimes::mean(&[t(1.0), t(2.0), t(6.0)]),
+            Some(t(3.0))
+        );
+        assert_eq!(WindowCpuTimes::mean(&[]), None);
+        let first = WindowCpuTimes::default().smoothed(t(4.0));
+        assert_eq!(first, t(4.0));
+        assert!((first.smoothed(t(14.0)).ui_ms - 5.0).abs() < 1e-12);
+    }
+
+    /// A start: the window's first frame at 300 ms, two frames waiting
+    /// for the views (the longest wait 400 ms), the views at 1,000 ms;
+    /// frames after that change nothing.
+    #[test]
+    fn startup_records_the_first_frames() {
+        let mut s = Startup::default();
+        s.presented(300.0, false);
+        s.presented(700.0, false);
+        s.presented(1000.0, true);
+        s.presented(5000.0, true);
+        assert_eq!(s.first_frame_ms, Some(300.0));
+        assert_eq!(s.views_shown_ms, Some(1000.0));
+        assert_eq!(s.longest_wait_ms, 400.0);
     }
 }
