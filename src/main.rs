@@ -832,8 +832,9 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
                 t.egui_ms
             );
         }
-        if let Some(c) = report.window_cpu {
-            println!("window CPU per frame (mean): egui {:.2} ms", c.ui_ms);
+        if !report.ui_ms.is_empty() {
+            let mean = report.ui_ms.iter().sum::<f64>() / report.ui_ms.len() as f64;
+            println!("window CPU per frame (mean): egui {mean:.2} ms");
         }
     }
     if let Some(path) = &args.screenshot {

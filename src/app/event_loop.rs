@@ -76,7 +76,7 @@ pub(super) fn run(options: ViewOptions) -> Result<RunReport, AppError> {
         samples: Vec::new(),
         pass_times: Vec::new(),
         startup: Default::default(),
-        window_cpu: None,
+        ui_ms: Vec::new(),
     }))
 }
 

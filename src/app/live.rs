@@ -18,7 +18,7 @@ use super::panel::{self, PanelInfo};
 use super::reload::HotReload;
 use super::screenshot;
 use super::surface::{read_rgba8, Acquired, WindowSurface};
-use super::timing::{FrameStats, FrameTimer, PassTimes, Startup, WindowCpuTimes};
+use super::timing::{FrameStats, FrameTimer, PassTimes, Startup};
 use super::view_ui::{views_ui, ViewArea};
 use super::views::ViewSlots;
 use super::{AppError, RunReport, ViewOptions};
@@ -59,10 +59,6 @@ pub(super) struct LiveApp {
     /// When the app started, and how its first frames went.
     started: Instant,
     startup: Startup,
-    /// The window's own CPU work per frame: smoothed for the panel, and
-    /// every counted frame's for `--report-frame-times`.
-    window_cpu: WindowCpuTimes,
-    window_cpu_times: Vec<WindowCpuTimes>,
 }
 
 impl LiveApp {
@@ -110,8 +106,6 @@ impl LiveApp {
             },
             started,
             startup: Startup::default(),
-            window_cpu: WindowCpuTimes::default(),
-            window_cpu_times: Vec::new(),
         };
         if o.watch {
             live.rewatch(proxy);
@@ -138,7 +132,7 @@ impl LiveApp {
             samples: self.views.samples(self.model.layout.view_count()),
             pass_times: self.pass_times.clone(),
             startup: self.startup.clone(),
-            window_cpu: WindowCpuTimes::mean(&self.window_cpu_times),
+            ui_ms: self.stats.ui_ms.clone(),
         }
     }
 
@@ -175,10 +169,10 @@ impl LiveApp {
         // of `--exit-after-frames` and the frame times are of frames that
         // show the views. A view that cannot be built (its error shown)
         // does not hold the count back.
-        let counted = self.model.error.is_some()
-            || !(self.views)
-                .compiling_first(self.model.layout.view_count())
-                .contains(&true);
+        let compiling_first = (self.views)
+            .compiling_first(self.model.layout.view_count())
+            .contains(&true);
+        let counted = self.model.error.is_some() || !compiling_first;
         let last_frame =
             counted && (self.run.exit_after).is_some_and(|n| self.stats.frames + 1 >= n);
         let want_shot = std::mem::take(&mut self.model.requests.screenshot)
@@ -193,12 +187,7 @@ impl LiveApp {
         }
         self.collect_times(sampled);
         if counted {
-            self.stats.tick(self.run.keep_times);
-            let cpu = WindowCpuTimes { ui_ms };
-            self.window_cpu = self.window_cpu.smoothed(cpu);
-            if self.run.keep_times {
-                self.window_cpu_times.push(cpu);
-            }
+            self.stats.tick(self.run.keep_times, ui_ms);
         } else {
             self.stats.pause();
         }
@@ -206,7 +195,7 @@ impl LiveApp {
         if self.run.exit_after.is_some_and(|n| self.stats.frames >= n) {
             return Ok(true);
         }
-        self.schedule_next(repaint_delay);
+        self.schedule_next(repaint_delay, compiling_first);
         Ok(false)
     }
 
@@ -237,7 +226,7 @@ impl LiveApp {
             accel: self.views.accel_info(),
             warming: self.views.warming(),
             compiling: (self.views).compiling_first(self.model.layout.view_count()),
-            window_cpu: self.window_cpu,
+            ui_ms: self.stats.smoothed_ui_ms,
         };
         let textures = self.views.texture_ids();
         let model = &mut self.model;
@@ -430,10 +419,8 @@ impl LiveApp {
 
     /// Keeps drawing while anything is moving or converging; else waits
     /// (until egui's `repaint_delay`, when it asked for one).
-    fn schedule_next(&mut self, repaint_delay: Duration) {
+    fn schedule_next(&mut self, repaint_delay: Duration, compiling_first: bool) {
         let flying = self.model.nav == NavMode::Fly && self.model.move_keys.any();
-        let count = self.model.layout.view_count();
-        let compiling_first = self.views.compiling_first(count).contains(&true);
         if compiling_first && !flying && !self.views.converging() {
             // Nothing to draw but the panel until the views' first
             // pipelines are compiled (render::warmup): leave the cores to

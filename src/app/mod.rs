@@ -127,8 +127,8 @@ pub struct RunReport {
     pub pass_times: Vec<timing::PassTimes>,
     /// How the window started.
     pub startup: timing::Startup,
-    /// The mean of the window's own CPU work over the counted frames.
-    pub window_cpu: Option<timing::WindowCpuTimes>,
+    /// egui's CPU ms (running the UI, preparing its paint) per frame.
+    pub ui_ms: Vec<f64>,
 }
 
 /// Opens the window and runs until it is closed (or `exit_after_frames`).

@@ -8,7 +8,7 @@ use glam::Vec3;
 use super::controller::NavMode;
 use super::layout::Layout;
 use super::model::Model;
-use super::timing::{PassTimes, WindowCpuTimes};
+use super::timing::PassTimes;
 use crate::gpu::twins::MAX_OUTLINE_RADIUS;
 use crate::render::{AccelChoice, RenderMode, Temporal, ToneMap, MAX_BOUNCES, MAX_SPP};
 use crate::sampling::PixelPattern;
@@ -39,8 +39,8 @@ pub struct PanelInfo<'a> {
     pub warming: usize,
     /// Per shown view, whether it waits for its first pipelines.
     pub compiling: Vec<bool>,
-    /// The window's own CPU work per frame (smoothed).
-    pub window_cpu: WindowCpuTimes,
+    /// egui's CPU ms per frame (smoothed).
+    pub ui_ms: f64,
 }
 
 /// A combo box over `options`, named by `name`: one line per enum field.
@@ -190,7 +190,7 @@ fn stats_ui(ui: &mut Ui, model: &Model, info: &PanelInfo) {
             ui.label(RichText::new("GPU pass times: no timestamp queries here").small());
         }
     }
-    ui.label(RichText::new(format!("window CPU: egui {:.2} ms", info.window_cpu.ui_ms)).small());
+    ui.label(RichText::new(format!("window CPU: egui {:.2} ms", info.ui_ms)).small());
     let file = model
         .scene_path
         .as_ref()

@@ -153,39 +153,6 @@ impl FrameTimer {
     }
 }
 
-/// CPU milliseconds of the window's own work in one frame: running egui
-/// (the panel, labels and gestures) and preparing its paint (tessellation
-/// and uploads). Not here: presenting, whose call on the CPU driver also
-/// waits for the frame's GPU work, so that its time is not the window's.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct WindowCpuTimes {
-    pub ui_ms: f64,
-}
-
-impl WindowCpuTimes {
-    /// The mean of `times`, `None` when empty.
-    pub fn mean(times: &[WindowCpuTimes]) -> Option<WindowCpuTimes> {
-        if times.is_empty() {
-            return None;
-        }
-        let n = times.len() as f64;
-        Some(WindowCpuTimes {
-            ui_ms: times.iter().map(|t| t.ui_ms).sum::<f64>() / n,
-        })
-    }
-
-    /// `self` moved a tenth of the way towards `next` (the panel's
-    /// steady figure); `next` itself the first time.
-    pub fn smoothed(self, next: WindowCpuTimes) -> WindowCpuTimes {
-        if self == WindowCpuTimes::default() {
-            return next;
-        }
-        WindowCpuTimes {
-            ui_ms: self.ui_ms * 0.9 + next.ui_ms * 0.1,
-        }
-    }
-}
-
 /// How the window started, in ms from the app's start (before its window
 /// and device open): its first presented frame, the
 /// first that showed every view (their first pipelines compiled), and the
@@ -216,7 +183,20 @@ impl Startup {
     }
 }
 
-/// CPU frame times: the interval between consecutive presented frames.
+/// `smoothed` moved a tenth of the way towards `next` (the panel's steady
+/// figures); `next` itself while `smoothed` is still 0.
+fn smooth(smoothed: f64, next: f64) -> f64 {
+    if smoothed == 0.0 {
+        next
+    } else {
+        smoothed * 0.9 + next * 0.1
+    }
+}
+
+/// CPU frame times: the interval between consecutive presented frames, and
+/// the window's own CPU work in each (running egui's UI and preparing its
+/// paint: tessellation and uploads). Presenting is not counted there: on
+/// the CPU driver its call also waits for the frame's GPU work.
 #[derive(Debug, Default)]
 pub struct FrameStats {
     last: Option<Instant>,
@@ -224,23 +204,27 @@ pub struct FrameStats {
     pub intervals_ms: Vec<f64>,
     /// Exponential average of the interval, for the stats line.
     pub smoothed_ms: f64,
+    /// Every frame's egui CPU ms, for `--report-frame-times`.
+    pub ui_ms: Vec<f64>,
+    /// Exponential average of egui's CPU ms, for the panel.
+    pub smoothed_ui_ms: f64,
     pub frames: u64,
 }
 
 impl FrameStats {
-    /// Records a presented frame.
-    pub fn tick(&mut self, keep_all: bool) {
+    /// Records a presented frame whose egui work took `ui_ms` of CPU.
+    pub fn tick(&mut self, keep_all: bool, ui_ms: f64) {
         let now = Instant::now();
         if let Some(last) = self.last {
             let ms = now.duration_since(last).as_secs_f64() * 1e3;
-            self.smoothed_ms = if self.smoothed_ms == 0.0 {
-                ms
-            } else {
-                self.smoothed_ms * 0.9 + ms * 0.1
-            };
+            self.smoothed_ms = smooth(self.smoothed_ms, ms);
             if keep_all {
                 self.intervals_ms.push(ms);
             }
+        }
+        self.smoothed_ui_ms = smooth(self.smoothed_ui_ms, ui_ms);
+        if keep_all {
+            self.ui_ms.push(ui_ms);
         }
         self.last = Some(now);
         self.frames += 1;
@@ -307,19 +291,21 @@ mod tests {
         assert!(summarize(&ms, 6).is_none());
     }
 
-    /// The report's mean is the plain mean; the panel's figure starts at
-    /// the first frame's and then moves a tenth of the way to each next.
+    /// The panel's figures start at the first frame's and then move a
+    /// tenth of the way to each next; the report keeps every frame's.
     #[test]
-    fn window_cpu_times_mean_and_smoothing() {
-        let t = |ui_ms| WindowCpuTimes { ui_ms };
+    fn frame_stats_smooth_the_egui_time() {
+        let mut stats = FrameStats::default();
+        stats.tick(true, 4.0);
+        assert_eq!(stats.smoothed_ui_ms, 4.0);
+        stats.tick(true, 14.0);
+        assert!((stats.smoothed_ui_ms - 5.0).abs() < 1e-12);
+        assert_eq!(stats.ui_ms, [4.0, 14.0]);
         assert_eq!(
-            WindowCpuTimes::mean(&[t(1.0), t(2.0), t(6.0)]),
-            Some(t(3.0))
+            stats.intervals_ms.len(),
+            1,
+            "the first frame has no interval"
         );
-        assert_eq!(WindowCpuTimes::mean(&[]), None);
-        let first = WindowCpuTimes::default().smoothed(t(4.0));
-        assert_eq!(first, t(4.0));
-        assert!((first.smoothed(t(14.0)).ui_ms - 5.0).abs() < 1e-12);
     }
 
     /// A start: the window's first frame at 300 ms, two frames waiting
