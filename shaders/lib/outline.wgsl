@@ -14,7 +14,7 @@ fn smooth_step_bounds(r: i32) -> vec2<f32> {
 }
 
 // Whether two neighbouring texels (normal xyz, view depth w), each already
-// checked on its own (smooth_texel), are close enough for the bounds `b`
+// checked on its own (smooth_texel), are close enough for `bounds`
 // of smooth_step_bounds. Written so that a NaN anywhere fails it.
 fn smooth_pair(a: vec4<f32>, b: vec4<f32>, bounds: vec2<f32>) -> bool {
     return a.w >= b.w * bounds.x && b.w >= a.w * bounds.x
