@@ -2,6 +2,7 @@
 //! chosen, on the scenes other renderers were timed on
 //! (../shared/bench/anchor-scenes.md). Timings live here, never in tests.
 
+mod ab;
 mod accel;
 mod csg;
 mod export;
@@ -16,7 +17,7 @@ use std::time::Instant;
 use glam::{Mat4, Vec3};
 
 use celray::gpu::shader::ShaderOverrides;
-use celray::gpu::timer::GpuTimer;
+use celray::gpu::timer::{GpuTimer, Span};
 use celray::gpu::twins::GpuRay;
 use celray::gpu::Gpu;
 use celray::render::ray_batch::RayBatch;
@@ -68,6 +69,13 @@ pub struct BenchArgs {
     /// rebuilding.
     #[arg(long, value_name = "DIR")]
     pub shaders: Option<PathBuf>,
+    /// With suite `scene`: also time the scene with DIR's shader files (B,
+    /// read as --shaders reads them) against the shaders in use (A),
+    /// alternating frame by frame in one process, and print per pass the
+    /// fastest frame of each and the median ratio B / A over the
+    /// `--frames` pairs: a busy machine disturbs both alike.
+    #[arg(long, value_name = "DIR")]
+    pub compare_shaders: Option<PathBuf>,
     /// The global `--accel` (set by main): what the frame cases walk.
     #[arg(skip)]
     pub accel: celray::render::AccelChoice,
@@ -88,73 +96,103 @@ struct FrameStats {
     passes: Vec<(&'static str, f64)>,
 }
 
-/// Times `frames` frames, each one sample (all passes) plus a resolve into
-/// an 8-bit target, waited for: what a window waits per frame.
+/// One renderer timed frame by frame: each frame one sample (all passes)
+/// plus a resolve into an 8-bit target, waited for: what a window waits
+/// per frame.
+struct TimedRenderer {
+    renderer: Renderer,
+    target: wgpu::Texture,
+    resolve_timer: Option<(GpuTimer, [Span; 1])>,
+}
+
+impl TimedRenderer {
+    fn new(gpu: &Gpu, scene: Scene, mode: RenderMode, args: &BenchArgs) -> anyhow::Result<Self> {
+        let settings = RenderSettings {
+            width: args.width,
+            height: args.height,
+            spp: 1 << 20,
+            mode,
+            accel: args.accel,
+            ..RenderSettings::default()
+        };
+        let mut renderer = Renderer::new(gpu, scene, settings)?;
+        let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("bench target"),
+            size: wgpu::Extent3d {
+                width: args.width,
+                height: args.height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        renderer.enable_pass_timing(gpu);
+        // The resolve is recorded outside the renderer's sample, as a window
+        // records it: timed as a pass of its own where the device stamps
+        // inside encoders.
+        let resolve_timer = GpuTimer::new(gpu, "bench resolve", ["resolve"])
+            .filter(|(timer, _)| timer.stamps_inside_encoders());
+        Ok(TimedRenderer {
+            renderer,
+            target,
+            resolve_timer,
+        })
+    }
+
+    /// One frame: its wall milliseconds and its GPU milliseconds per pass.
+    fn frame(&mut self, gpu: &Gpu) -> anyhow::Result<(f64, Vec<(&'static str, f64)>)> {
+        let start = Instant::now();
+        self.renderer.render_sample(gpu)?;
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        if let Some((timer, [span])) = self.resolve_timer.as_mut() {
+            timer.begin();
+            timer.stamp_begin(&mut encoder, *span);
+        }
+        self.renderer
+            .resolve_into(gpu, &mut encoder, &self.target)?;
+        if let Some((timer, [span])) = self.resolve_timer.as_mut() {
+            timer.stamp_end(&mut encoder, *span);
+            timer.finish(&mut encoder);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        if let Some((timer, _)) = self.resolve_timer.as_mut() {
+            timer.after_submit();
+        }
+        gpu.wait_idle()?;
+        let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        // Read every sample's pass times, warm-up ones too: a sample is
+        // timed only once the one before it has been read.
+        let mut pass_times = self.renderer.pass_times(gpu)?;
+        if let Some((timer, _)) = self.resolve_timer.as_mut() {
+            pass_times.extend(timer.wait(gpu)?);
+        }
+        Ok((wall_ms, pass_times))
+    }
+}
+
+/// Frames before the timed ones: the first builds what the scene needs.
+const WARM_UP_FRAMES: u32 = 3;
+
+/// Times `args.frames` frames of `scene` after [`WARM_UP_FRAMES`].
 fn time_frames(
     gpu: &Gpu,
     scene: Scene,
     mode: RenderMode,
     args: &BenchArgs,
 ) -> anyhow::Result<FrameStats> {
-    let settings = RenderSettings {
-        width: args.width,
-        height: args.height,
-        spp: 1 << 20,
-        mode,
-        accel: args.accel,
-        ..RenderSettings::default()
-    };
-    let mut renderer = Renderer::new(gpu, scene, settings)?;
-    let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("bench target"),
-        size: wgpu::Extent3d {
-            width: args.width,
-            height: args.height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8UnormSrgb,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-        view_formats: &[],
-    });
-    renderer.enable_pass_timing(gpu);
-    // The resolve is recorded outside the renderer's sample, as a window
-    // records it: timed as a pass of its own where the device stamps
-    // inside encoders.
-    let mut resolve_timer = GpuTimer::new(gpu, "bench resolve", ["resolve"])
-        .filter(|(timer, _)| timer.stamps_inside_encoders());
+    let mut timed = TimedRenderer::new(gpu, scene, mode, args)?;
     let mut times = Vec::new();
     let mut passes = PassStats::new(args.pass_stat);
-    for i in 0..args.frames + 3 {
-        let start = Instant::now();
-        renderer.render_sample(gpu)?;
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        if let Some((timer, [span])) = resolve_timer.as_mut() {
-            timer.begin();
-            timer.stamp_begin(&mut encoder, *span);
-        }
-        renderer.resolve_into(gpu, &mut encoder, &target)?;
-        if let Some((timer, [span])) = resolve_timer.as_mut() {
-            timer.stamp_end(&mut encoder, *span);
-            timer.finish(&mut encoder);
-        }
-        gpu.queue.submit([encoder.finish()]);
-        if let Some((timer, _)) = resolve_timer.as_mut() {
-            timer.after_submit();
-        }
-        gpu.wait_idle()?;
-        // Read every sample's pass times, warm-up ones too: a sample is
-        // timed only once the one before it has been read.
-        let mut pass_times = renderer.pass_times(gpu)?;
-        if let Some((timer, _)) = resolve_timer.as_mut() {
-            pass_times.extend(timer.wait(gpu)?);
-        }
-        if i < 3 {
+    for i in 0..args.frames + WARM_UP_FRAMES {
+        let (ms, pass_times) = timed.frame(gpu)?;
+        if i < WARM_UP_FRAMES {
             continue;
         }
-        times.push(start.elapsed().as_secs_f64() * 1e3);
+        times.push(ms);
         passes.add(&pass_times);
     }
     let mean = times.iter().sum::<f64>() / times.len() as f64;
@@ -983,6 +1021,11 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
         }
         gpu.set_shader_overrides(Some(ShaderOverrides::read_dir(dir)?));
     }
+    if let Some(dir) = &args.compare_shaders {
+        if !dir.is_dir() {
+            anyhow::bail!("--compare-shaders {}: not a folder", dir.display());
+        }
+    }
     if args.frames == 0 {
         anyhow::bail!("--frames must be at least 1 (frames timed per case)");
     }
@@ -990,6 +1033,9 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     let own_scene = match (args.suite.as_str(), &args.scene) {
         ("scene", Some(path)) => Some((path.as_path(), Scene::load(path)?)),
         ("scene", None) => anyhow::bail!("bench scene: name the scene file with --scene FILE"),
+        (_, _) if args.compare_shaders.is_some() => anyhow::bail!(
+            "--compare-shaders is for the suite `scene` (celray bench scene --scene FILE --compare-shaders DIR)"
+        ),
         (_, Some(_)) => {
             anyhow::bail!("--scene is for the suite `scene` (celray bench scene --scene FILE)")
         }
@@ -1025,7 +1071,13 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
         "csg" => csg::csg_suite(gpu, args, r),
         "accel" => accel::accel_suite(gpu, args, helmet.as_ref(), r),
         "temporal" => temporal_rows(gpu, args, r),
-        "scene" => scene_case(gpu, args, own_scene.expect("loaded above"), r),
+        "scene" => {
+            let own_scene = own_scene.expect("loaded above");
+            match &args.compare_shaders {
+                Some(dir) => ab::compare_shaders(gpu, args, own_scene, dir, r),
+                None => scene_case(gpu, args, own_scene, r),
+            }
+        }
         "all" => {
             raster_suite(gpu, args, helmet.as_ref(), r)?;
             rays_suite(gpu, args, helmet.as_ref(), r)?;
