@@ -130,7 +130,8 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: 
             }
         }
     }
-    for (var i = 0u; i < frame.light_count; i++) {
+    // A fixed count (lib/shading.wgsl, light_loop_count) unrolls the loop.
+    for (var i = 0u; i < light_loop_count(frame.light_count); i++) {
         let light = lights[i];
         let ls = sample_light(i, light, p);
         var visible = i >= 32u || (blocked & (1u << i)) == 0u;

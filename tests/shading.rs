@@ -126,7 +126,7 @@ fn toon_sphere_shows_n_bands_with_edges_where_n_dot_l_crosses_thresholds() {
 /// A Blinn-Phong sphere under a directional and a point light matches the
 /// formula evaluated on the CPU, in every mode, within 2/255 a channel.
 ///
-/// The raster pipelines fix the light count and each light's kind for
+/// The raster and trace pipelines fix the light count and each light's kind for
 /// scenes of at most `MAX_FIXED_LIGHTS` lights and loop over
 /// `frame.light_count` beyond: the scene is also rendered with that many
 /// dark lights of both kinds in front of its two, which must add exactly
@@ -136,7 +136,7 @@ fn blinn_phong_matches_cpu_formula() {
     let gpu = gpu();
     let lit = "Directional(direction: (-1.0, -1.0, -1.0), color: (1.0, 0.9, 0.8), intensity: 0.8),
             Point(position: (-2.0, 3.0, 4.0), color: (0.6, 0.7, 1.0), intensity: 15.0),";
-    let dark: String = (0..celray::render::raster::MAX_FIXED_LIGHTS)
+    let dark: String = (0..celray::render::scene_buffers::MAX_FIXED_LIGHTS)
         .map(|i| {
             if i % 2 == 0 {
                 "Point(position: (1.0, 2.0, 3.0), color: (1.0, 1.0, 1.0), intensity: 0.0),"

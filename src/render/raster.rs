@@ -7,17 +7,18 @@ use std::collections::HashMap;
 
 use glam::{Mat3, Vec3};
 
-use crate::gpu::twins::{Vertex, FAR_DEPTH, LIGHTS_DYNAMIC};
+use crate::gpu::twins::{Vertex, FAR_DEPTH};
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::camera::SampleCamera;
 use crate::render::scene_buffers::{
-    scene_layout, Cull, Draw, MeshLevel, SceneBuffers, ShadingVariant, PASS_GROUP, SCENE_GROUP,
+    scene_layout, Cull, Draw, LightLayout, MeshLevel, SceneBuffers, ShadingVariant, PASS_GROUP,
+    SCENE_GROUP,
 };
 use crate::render::settings::RenderMode;
 use crate::render::targets::{
     Targets, ALBEDO_FORMAT, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT,
 };
-use crate::scene::{Camera, Light, Scene, Shape, MAX_SILHOUETTE_ERROR_PX};
+use crate::scene::{Camera, Scene, Shape, MAX_SILHOUETTE_ERROR_PX};
 
 pub struct RasterPass {
     /// One pipeline per [`Cull`] mode (back, front, none) for each
@@ -42,59 +43,6 @@ pub struct RasterVariant {
     shading: ShadingVariant,
     /// The lights' count and kinds, when fixed.
     lights: LightLayout,
-}
-
-/// Scenes with at most this many lights get raster pipelines with the
-/// light count and each light's kind fixed ([`LightLayout`]).
-pub const MAX_FIXED_LIGHTS: u32 = 8;
-
-/// The light count and each light's kind, fixed in the raster pipelines
-/// of scenes with at most [`MAX_FIXED_LIGHTS`] lights (override constants
-/// `LIGHT_COUNT` and `POINT_LIGHTS` of lib/shading.wgsl): the fragment
-/// shader's light loop unrolls and each light runs only its kind's code.
-/// On lavapipe this takes about a third off the default scene's raster
-/// pass (docs/performance.md). Adding, removing or changing the kind of a
-/// light builds new raster pipelines, which takes a fraction of a second.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct LightLayout {
-    /// `LIGHT_COUNT`: the number of lights, or [`LIGHTS_DYNAMIC`].
-    count: u32,
-    /// `POINT_LIGHTS`: bit i set when light i is a point light.
-    point_lights: u32,
-}
-
-impl Default for LightLayout {
-    /// Not fixed: loops run to `frame.light_count` and test each kind.
-    fn default() -> Self {
-        LightLayout {
-            count: LIGHTS_DYNAMIC,
-            point_lights: 0,
-        }
-    }
-}
-
-impl LightLayout {
-    pub fn of(lights: &[Light]) -> LightLayout {
-        if lights.len() > MAX_FIXED_LIGHTS as usize {
-            return LightLayout::default();
-        }
-        let point_lights = lights.iter().enumerate().fold(0, |bits, (i, l)| match l {
-            Light::Point { .. } => bits | 1 << i,
-            Light::Directional { .. } => bits,
-        });
-        LightLayout {
-            count: lights.len() as u32,
-            point_lights,
-        }
-    }
-
-    /// The override constants that fix this layout in lib/shading.wgsl.
-    pub fn constants(self) -> [(&'static str, f64); 2] {
-        [
-            ("LIGHT_COUNT", f64::from(self.count)),
-            ("POINT_LIGHTS", f64::from(self.point_lights)),
-        ]
-    }
 }
 
 /// Group 1 of the raster pass, binding by binding as `shaders/raster.wgsl`
@@ -484,47 +432,4 @@ fn max_stretch(m: Mat3) -> f32 {
     let g = m.transpose() * m;
     let row = |i: usize| g.x_axis[i].abs() + g.y_axis[i].abs() + g.z_axis[i].abs();
     row(0).max(row(1)).max(row(2)).sqrt()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn sun() -> Light {
-        Light::Directional {
-            direction: Vec3::NEG_Y,
-            color: Vec3::ONE,
-            intensity: 1.0,
-            cast_shadows: true,
-        }
-    }
-
-    fn bulb() -> Light {
-        Light::Point {
-            position: Vec3::Y,
-            color: Vec3::ONE,
-            intensity: 1.0,
-            cast_shadows: true,
-        }
-    }
-
-    /// Up to MAX_FIXED_LIGHTS lights, the count and a bit per point light
-    /// at its index; beyond, nothing is fixed.
-    #[test]
-    fn light_layout_fixes_count_and_kinds_of_few_lights() {
-        let constants = |lights: &[Light]| LightLayout::of(lights).constants().map(|(_, v)| v);
-        assert_eq!(constants(&[]), [0.0, 0.0]);
-        assert_eq!(constants(&[sun(), bulb()]), [2.0, 2.0]);
-        assert_eq!(constants(&[bulb(), sun(), bulb()]), [3.0, 5.0]);
-        let most = vec![bulb(); MAX_FIXED_LIGHTS as usize];
-        assert_eq!(
-            constants(&most),
-            [
-                f64::from(MAX_FIXED_LIGHTS),
-                f64::from((1u32 << MAX_FIXED_LIGHTS) - 1)
-            ]
-        );
-        let too_many = vec![bulb(); MAX_FIXED_LIGHTS as usize + 1];
-        assert_eq!(constants(&too_many), [f64::from(LIGHTS_DYNAMIC), 0.0]);
-    }
 }

@@ -15,8 +15,8 @@ use wgpu::util::DeviceExt;
 use crate::accel::{shadow_cull, SceneAccel};
 use crate::gpu::layout::{buffer_entries, map_array_entry, read_only_storage_entry, sampler_entry};
 use crate::gpu::twins::{
-    GpuInstance, GpuLight, GpuMaterial, Vertex, MAX_TOON_BANDS, NO_TEXTURE, SHADING_BLINN_PHONG,
-    SHADING_TOON,
+    GpuInstance, GpuLight, GpuMaterial, Vertex, LIGHTS_DYNAMIC, MAX_TOON_BANDS, NO_TEXTURE,
+    SHADING_BLINN_PHONG, SHADING_TOON,
 };
 use crate::gpu::{Gpu, GpuError};
 use crate::render::textures::{scene_uses_textures, SceneTextures};
@@ -209,6 +209,60 @@ impl ShadingVariant {
             ("TOON_THRESHOLD_VECS", f64::from(self.toon_threshold_vecs)),
             ("SHADING_MODELS", f64::from(self.models)),
             ("LIGHT_KINDS", f64::from(self.lights)),
+        ]
+    }
+}
+
+/// Scenes with at most this many lights get raster and trace pipelines
+/// with the light count and each light's kind fixed ([`LightLayout`]).
+pub const MAX_FIXED_LIGHTS: u32 = 8;
+
+/// The light count and each light's kind, fixed in the raster and trace
+/// pipelines of scenes with at most [`MAX_FIXED_LIGHTS`] lights (override
+/// constants `LIGHT_COUNT` and `POINT_LIGHTS` of lib/shading.wgsl): the
+/// light loops unroll and each light runs only its kind's code. On
+/// lavapipe this takes about a third off the default scene's raster pass
+/// and about a tenth off its trace pass (docs/performance.md). Adding,
+/// removing or changing the kind of a light builds new pipelines (the app
+/// compiles them ahead, render::warmup).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct LightLayout {
+    /// `LIGHT_COUNT`: the number of lights, or [`LIGHTS_DYNAMIC`].
+    count: u32,
+    /// `POINT_LIGHTS`: bit i set when light i is a point light.
+    point_lights: u32,
+}
+
+impl Default for LightLayout {
+    /// Not fixed: loops run to `frame.light_count` and test each kind.
+    fn default() -> Self {
+        LightLayout {
+            count: LIGHTS_DYNAMIC,
+            point_lights: 0,
+        }
+    }
+}
+
+impl LightLayout {
+    pub fn of(lights: &[Light]) -> LightLayout {
+        if lights.len() > MAX_FIXED_LIGHTS as usize {
+            return LightLayout::default();
+        }
+        let point_lights = lights.iter().enumerate().fold(0, |bits, (i, l)| match l {
+            Light::Point { .. } => bits | 1 << i,
+            Light::Directional { .. } => bits,
+        });
+        LightLayout {
+            count: lights.len() as u32,
+            point_lights,
+        }
+    }
+
+    /// The override constants that fix this layout in lib/shading.wgsl.
+    pub fn constants(self) -> [(&'static str, f64); 2] {
+        [
+            ("LIGHT_COUNT", f64::from(self.count)),
+            ("POINT_LIGHTS", f64::from(self.point_lights)),
         ]
     }
 }
@@ -644,6 +698,7 @@ impl SceneBuffers {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn shading_of(materials: &str, lights: &str) -> [(&'static str, f64); 3] {
         let ron = format!(
@@ -695,5 +750,43 @@ mod tests {
             )),
             [1.0, 1.0, 3.0]
         );
+    }
+
+    fn sun() -> Light {
+        Light::Directional {
+            direction: Vec3::NEG_Y,
+            color: Vec3::ONE,
+            intensity: 1.0,
+            cast_shadows: true,
+        }
+    }
+
+    fn bulb() -> Light {
+        Light::Point {
+            position: Vec3::Y,
+            color: Vec3::ONE,
+            intensity: 1.0,
+            cast_shadows: true,
+        }
+    }
+
+    /// Up to MAX_FIXED_LIGHTS lights, the count and a bit per point light
+    /// at its index; beyond, nothing is fixed.
+    #[test]
+    fn light_layout_fixes_count_and_kinds_of_few_lights() {
+        let constants = |lights: &[Light]| LightLayout::of(lights).constants().map(|(_, v)| v);
+        assert_eq!(constants(&[]), [0.0, 0.0]);
+        assert_eq!(constants(&[sun(), bulb()]), [2.0, 2.0]);
+        assert_eq!(constants(&[bulb(), sun(), bulb()]), [3.0, 5.0]);
+        let most = vec![bulb(); MAX_FIXED_LIGHTS as usize];
+        assert_eq!(
+            constants(&most),
+            [
+                f64::from(MAX_FIXED_LIGHTS),
+                f64::from((1u32 << MAX_FIXED_LIGHTS) - 1)
+            ]
+        );
+        let too_many = vec![bulb(); MAX_FIXED_LIGHTS as usize + 1];
+        assert_eq!(constants(&too_many), [f64::from(LIGHTS_DYNAMIC), 0.0]);
     }
 }

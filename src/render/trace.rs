@@ -22,7 +22,7 @@ use crate::gpu::twins::{SHAPE_MESH, TRACE_WORKGROUP};
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
 use crate::render::scene_buffers::{
-    scene_layout, SceneBuffers, ShadingVariant, PASS_GROUP, SCENE_GROUP,
+    scene_layout, LightLayout, SceneBuffers, ShadingVariant, PASS_GROUP, SCENE_GROUP,
 };
 use crate::render::targets::Targets;
 use crate::render::RenderSettings;
@@ -97,6 +97,9 @@ pub struct Variant {
     analytic_kinds: u32,
     /// What the materials and lights need of the shading code.
     shading: ShadingVariant,
+    /// The lights' count and kinds, when fixed: the shading loop over the
+    /// lights unrolls.
+    lights: LightLayout,
 }
 
 impl Variant {
@@ -124,6 +127,7 @@ impl Variant {
             textures: buffers.uses_textures,
             analytic_kinds: analytic_kinds(buffers),
             shading: ShadingVariant::of(&scene.materials, &scene.lights),
+            lights: LightLayout::of(&scene.lights),
         }
     }
 
@@ -145,6 +149,7 @@ impl Variant {
             ("ANALYTIC_KINDS", f64::from(self.analytic_kinds)),
         ];
         constants.extend(self.shading.constants());
+        constants.extend(self.lights.constants());
         constants
     }
 }
