@@ -115,10 +115,17 @@ fn csg_push(st: ptr<private, CsgStore>, p: u32, t: f32, n: u32, tag: u32) {
 // alternating entries and exits (an entry runs against the geometric
 // normal; a repeated entry or exit, the same crossing found twice on a
 // shared edge, is skipped).
-fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) {
-    var ts: array<f32, CSG_MESH_MAX_CROSSINGS>;
-    var ns: array<vec3<f32>, CSG_MESH_MAX_CROSSINGS>;
-    var entering: array<bool, CSG_MESH_MAX_CROSSINGS>;
+// The crossings of the mesh leaf being collected, sorted by t. Module
+// scope for the reason csg_store is: zeroed once per invocation, not at
+// every mesh leaf tested; only the first `count` entries are read.
+struct CsgCrossings {
+    t: array<f32, CSG_MESH_MAX_CROSSINGS>,
+    n: array<vec3<f32>, CSG_MESH_MAX_CROSSINGS>,
+    entering: array<bool, CSG_MESH_MAX_CROSSINGS>,
+}
+var<private> csg_crossings: CsgCrossings;
+
+fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>, base: u32) {
     var count = 0u;
     let inv_d = 1.0 / d;
     // The caller's traversal stack above `base`, as intersect_mesh does.
@@ -130,14 +137,14 @@ fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f
                 break;
             }
             sp -= 1u;
-            current = (*stack)[sp];
+            current = trace_stack[sp];
         }
         if !take_step() {
             return;
         }
         let node = nodes[current];
         if node.count == 0u {
-            current = descend(node, o, inv_d, -CSG_FAR, CSG_FAR, stack, &sp);
+            current = descend(node, o, inv_d, -CSG_FAR, CSG_FAR, &sp);
             continue;
         }
         current = NO_HIT;
@@ -152,23 +159,25 @@ fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f
             }
             // Insertion sort by t; ties keep discovery order.
             var at = count;
-            while at > 0u && ts[at - 1u] > h.t {
-                ts[at] = ts[at - 1u];
-                ns[at] = ns[at - 1u];
-                entering[at] = entering[at - 1u];
+            while at > 0u && csg_crossings.t[at - 1u] > h.t {
+                csg_crossings.t[at] = csg_crossings.t[at - 1u];
+                csg_crossings.n[at] = csg_crossings.n[at - 1u];
+                csg_crossings.entering[at] = csg_crossings.entering[at - 1u];
                 at -= 1u;
             }
-            ts[at] = h.t;
-            ns[at] = h.normal;
-            entering[at] = dot(h.geometric, d) < 0.0;
+            csg_crossings.t[at] = h.t;
+            csg_crossings.n[at] = h.normal;
+            csg_crossings.entering[at] = dot(h.geometric, d) < 0.0;
             count += 1u;
         }
     }
     var inside = false;
     for (var k = 0u; k < count; k++) {
-        if entering[k] != inside {
-            csg_push(st, p, ts[k], csg_pack_normal((leaf.csg_normal_from_leaf * vec4<f32>(ns[k], 0.0)).xyz), csg_tag(leaf.material));
-            inside = entering[k];
+        let entering = csg_crossings.entering[k];
+        if entering != inside {
+            let n = csg_pack_normal((leaf.csg_normal_from_leaf * vec4<f32>(csg_crossings.n[k], 0.0)).xyz);
+            csg_push(st, p, csg_crossings.t[k], n, csg_tag(leaf.material));
+            inside = entering;
         }
     }
     if inside {
@@ -177,12 +186,12 @@ fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f
 }
 
 // The spans of the whole line inside a leaf, into slot p.
-fn csg_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) {
+fn csg_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>, base: u32) {
     (*st).len[p] = 0u;
     let lo = (leaf.leaf_from_csg * vec4<f32>(o, 1.0)).xyz;
     let ld = (leaf.leaf_from_csg * vec4<f32>(d, 0.0)).xyz;
     if leaf.kind == SHAPE_MESH {
-        csg_mesh_leaf(st, p, leaf, lo, ld, stack, base);
+        csg_mesh_leaf(st, p, leaf, lo, ld, base);
         return;
     }
     // Convex: the first boundary on the line is the entry, the next the
@@ -276,7 +285,7 @@ fn csg_bound_may_hit(bound: vec4<f32>, o: vec3<f32>, d: vec3<f32>, t_min: f32, t
 // The closest boundary of the CSG program at `start` in (t_min, t_max), in
 // CSG object space; sets object_material.
 // Mesh leaves use the caller's traversal stack above `base`.
-fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
+fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, base: u32) -> ObjectHit {
     for (var s = 0u; s < CSG_SLOTS; s++) {
         csg_store.slot[s] = s;
     }
@@ -296,7 +305,7 @@ fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
                 overflowed = true;
                 return no_hit();
             }
-            csg_leaf(&csg_store, csg_store.slot[sp], csg_leaves[op.arg], o, d, stack, base);
+            csg_leaf(&csg_store, csg_store.slot[sp], csg_leaves[op.arg], o, d, base);
         } else {
             if sp < 2u {
                 overflowed = true;

@@ -11,7 +11,6 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     var object_normal = vec3<f32>(0.0);
     var object_geometric = vec3<f32>(0.0);
     let inv_d = 1.0 / d;
-    var stack: array<u32, TRAVERSAL_STACK>;
     var sp = 0u;
     var current = select(NO_HIT, 0u, box_entry(0u, o, inv_d, t_min, t_max) < 3.0e38);
     loop {
@@ -20,14 +19,14 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
                 break;
             }
             sp -= 1u;
-            current = stack[sp];
+            current = trace_stack[sp];
         }
         if !take_step() {
             break;
         }
         let node = nodes[current];
         if node.count == 0u {
-            current = descend(node, o, inv_d, t_min, best.t, &stack, &sp);
+            current = descend(node, o, inv_d, t_min, best.t, &sp);
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
@@ -37,7 +36,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
                 continue;
             }
             let m = instances[inst].object_from_world;
-            let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, best.t, &stack, sp);
+            let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, best.t, sp);
             if h.hit {
                 best.t = h.t;
                 best.instance = inst;

@@ -41,7 +41,6 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     // The triangle (index in `triangles`) of a generated hit on a CSG mesh
     // leaf, for its texture coordinates (hit_triangle, lib/traverse.wgsl).
     var gen_triangle = 0u;
-    var stack: array<u32, TRAVERSAL_STACK>;
     loop {
         if !rayQueryProceed(&rq) {
             break;
@@ -61,7 +60,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
         }
         let inst = cand.instance_custom_data;
         let m = instances[inst].object_from_world;
-        let h = intersect_instance_shape(instances[inst].shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, t_hi, &stack, 0u);
+        let h = intersect_instance_shape(instances[inst].shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, t_hi, 0u);
         if h.hit {
             gen_normal = h.normal;
             gen_geometric = h.geometric;

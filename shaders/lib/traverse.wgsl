@@ -16,6 +16,11 @@ const NO_HIT: u32 = 0xffffffffu;
 override MESHES_ENABLED: bool = true;
 
 var<private> steps_left: u32;
+// The traversal stack: one per invocation, which its queries use in turn
+// (a mesh or CSG walk inside a top-level walk, above the top level's
+// entries). A private array in each query would be zero-filled at each of
+// its calls; this one is filled once per invocation (docs/performance.md).
+var<private> trace_stack: array<u32, TRAVERSAL_STACK>;
 // The triangle (index into `triangles`) of the closest hit `trace` last
 // returned, when that hit is on a triangle mesh (texture coordinates).
 var<private> hit_triangle: u32;
@@ -62,7 +67,7 @@ fn box_entry(i: u32, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32) -> 
 // here (so a popped node needs no second test), continues into the nearer
 // child that is hit and pushes the farther one. Returns the next node, or
 // NO_HIT when neither child is hit (the caller pops).
-fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, sp: ptr<function, u32>) -> u32 {
+fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32, sp: ptr<function, u32>) -> u32 {
     let left = node.left_or_first;
     let t_left = box_entry(left, o, inv_d, t_min, t_max);
     let t_right = box_entry(left + 1u, o, inv_d, t_min, t_max);
@@ -74,7 +79,7 @@ fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32
             return NO_HIT;
         }
         let near_left = t_left <= t_right;
-        (*stack)[*sp] = select(left, left + 1u, near_left);
+        trace_stack[*sp] = select(left, left + 1u, near_left);
         *sp += 1u;
         return select(left + 1u, left, near_left);
     }
@@ -88,9 +93,8 @@ fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32
 }
 
 // The closest triangle of a mesh's bottom-level BVH, in object space. It
-// uses the caller's stack above `base` (one stack per ray: on CPU drivers a
-// private array costs in proportion to its size at every declaration).
-fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
+// uses `trace_stack` above `base`, where the caller's entries end.
+fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, base: u32) -> ObjectHit {
     let inv_d = 1.0 / d;
     var best = NO_HIT;
     var best_tuv = vec3<f32>(0.0);
@@ -103,14 +107,14 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
                 break;
             }
             sp -= 1u;
-            current = (*stack)[sp];
+            current = trace_stack[sp];
         }
         if !take_step() {
             break;
         }
         let node = nodes[current];
         if node.count == 0u {
-            current = descend(node, o, inv_d, t_min, t_best, stack, &sp);
+            current = descend(node, o, inv_d, t_min, t_best, &sp);
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
@@ -130,7 +134,7 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
     return triangle_hit(best, best_tuv);
 }
 
-fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, stack: ptr<function, array<u32, TRAVERSAL_STACK>>, base: u32) -> ObjectHit {
+fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, base: u32) -> ObjectHit {
     let s = shapes[shape];
     object_material = CSG_NO_MATERIAL;
     if CSG_ENABLED && s.kind == SHAPE_CSG {
@@ -138,13 +142,13 @@ fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, 
         if !csg_bound_may_hit(s.params, o, d, t_min, t_max) {
             return no_hit();
         }
-        return intersect_csg(s.blas_root, o, d, t_min, t_max, stack, base);
+        return intersect_csg(s.blas_root, o, d, t_min, t_max, base);
     }
     if s.kind == SHAPE_MESH {
         if !MESHES_ENABLED {
             return no_hit();
         }
-        return intersect_mesh(s.blas_root, o, d, t_min, t_max, stack, base);
+        return intersect_mesh(s.blas_root, o, d, t_min, t_max, base);
     }
     return intersect_analytic(s.kind, s.params, o, d, t_min, t_max);
 }
