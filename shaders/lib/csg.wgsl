@@ -128,7 +128,7 @@ var<private> csg_crossings: CsgCrossings;
 fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>, base: u32) {
     var count = 0u;
     let inv_d = 1.0 / d;
-    // The caller's traversal stack above `base`, as intersect_mesh does.
+    // `trace_stack` above `base`, where the caller's entries end, as intersect_mesh does.
     var sp = base;
     var current = select(NO_HIT, leaf.blas_root, box_entry(leaf.blas_root, o, inv_d, -CSG_FAR, CSG_FAR) < 3.0e38);
     loop {
@@ -284,7 +284,7 @@ fn csg_bound_may_hit(bound: vec4<f32>, o: vec3<f32>, d: vec3<f32>, t_min: f32, t
 
 // The closest boundary of the CSG program at `start` in (t_min, t_max), in
 // CSG object space; sets object_material.
-// Mesh leaves use the caller's traversal stack above `base`.
+// Mesh leaves use `trace_stack` above `base`, where the caller's entries end.
 fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, base: u32) -> ObjectHit {
     for (var s = 0u; s < CSG_SLOTS; s++) {
         csg_store.slot[s] = s;
