@@ -73,7 +73,9 @@ pub struct BenchArgs {
     /// read as --shaders reads them) against the shaders in use (A),
     /// alternating frame by frame in one process, and print per pass the
     /// fastest frame of each and the median ratio B / A over the
-    /// `--frames` pairs: a busy machine disturbs both alike.
+    /// `--frames` pairs: a busy machine disturbs both alike. With suite
+    /// `rays`: the same for the ray cases' batches (the ray-batch kernel),
+    /// dispatch by dispatch.
     #[arg(long, value_name = "DIR")]
     pub compare_shaders: Option<PathBuf>,
     /// The global `--accel` (set by main): what the frame cases walk.
@@ -640,6 +642,20 @@ fn shadow_split_row(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<(
     Ok(())
 }
 
+/// The scenes of `bench rays --compare-shaders`: the ray cases' own.
+fn ray_ab_cases(
+    args: &BenchArgs,
+    helmet: Option<Scene>,
+) -> anyhow::Result<Vec<(&'static str, Scene)>> {
+    let mut cases = Vec::new();
+    if let Some(helmet) = helmet {
+        cases.push(("helmet_rays", helmet));
+    }
+    cases.push(("spot_10000_rays", grid(&spot_scene(args)?, 10_000, 1.1)));
+    cases.push(("spheres_100_rays", ball_grid(args, 100)?));
+    Ok(cases)
+}
+
 fn rays_suite(
     gpu: &Gpu,
     args: &BenchArgs,
@@ -1033,8 +1049,9 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     let own_scene = match (args.suite.as_str(), &args.scene) {
         ("scene", Some(path)) => Some((path.as_path(), Scene::load(path)?)),
         ("scene", None) => anyhow::bail!("bench scene: name the scene file with --scene FILE"),
+        ("rays", None) => None,
         (_, _) if args.compare_shaders.is_some() => anyhow::bail!(
-            "--compare-shaders is for the suite `scene` (celray bench scene --scene FILE --compare-shaders DIR)"
+            "--compare-shaders is for the suites `scene` (celray bench scene --scene FILE --compare-shaders DIR) and `rays`"
         ),
         (_, Some(_)) => {
             anyhow::bail!("--scene is for the suite `scene` (celray bench scene --scene FILE)")
@@ -1063,7 +1080,10 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     match args.suite.as_str() {
         "floor" => Ok(()),
         "raster" => raster_suite(gpu, args, helmet.as_ref(), r),
-        "rays" => rays_suite(gpu, args, helmet.as_ref(), r),
+        "rays" => match &args.compare_shaders {
+            Some(dir) => ab::compare_ray_shaders(gpu, args, ray_ab_cases(args, helmet)?, dir, r),
+            None => rays_suite(gpu, args, helmet.as_ref(), r),
+        },
         "effects" => {
             effects_suite(gpu, args, r)?;
             flip_convergence(gpu, r)

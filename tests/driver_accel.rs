@@ -58,9 +58,7 @@ fn driver_hits_match_cpu_reference_on_random_rays() {
     let accel = &buffers.accel;
     let rays = random_rays(10_000);
     let batch = RayBatch::with_traversal(&gpu, Traversal::Driver).unwrap();
-    let (hits, _) = batch
-        .trace_driver_timed(&gpu, &buffers, &driver, &rays)
-        .unwrap();
+    let hits = batch.trace_driver(&gpu, &buffers, &driver, &rays).unwrap();
 
     assert_hits_match_cpu(accel, &rays, &hits, "driver");
 }

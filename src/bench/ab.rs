@@ -4,16 +4,19 @@
 //! gain, and two runs of `bench` minutes apart see different loads. Two
 //! renderers alternating frames see the same load, so the ratio of each
 //! pair of frames (B over A) stays near the change's own effect; its median
-//! over the pairs is the figure.
+//! over the pairs is the figure. `bench rays --compare-shaders DIR` does
+//! the same for the ray-batch kernel, one dispatch of each in turn.
 
 use std::path::Path;
 
 use celray::gpu::shader::ShaderOverrides;
 use celray::gpu::Gpu;
+use celray::render::ray_batch::RayBatch;
+use celray::render::AccelChoice;
 use celray::scene::Scene;
 
 use super::report::{md, Report};
-use super::{BenchArgs, TimedRenderer, WARM_UP_FRAMES};
+use super::{ray_renderer, BenchArgs, TimedRenderer, WARM_UP_FRAMES};
 
 /// The median and quartiles of B / A over pairs of frames, and in how many
 /// pairs B was the faster.
@@ -108,11 +111,75 @@ pub fn compare_shaders(
         args.width,
         args.height,
         args.mode.name(),
-        args.shaders
-            .as_ref()
-            .map_or("built-in shaders".to_string(), |d| d.display().to_string()),
+        shaders_name(args),
         dir.display()
     );
+    paired_table(r, "scene_ab", args.frames, &series);
+    Ok(())
+}
+
+/// `bench rays --compare-shaders DIR`: each ray case's batch (`cases`:
+/// name and scene) traced by the ray-batch kernel built from the shaders
+/// in use (A) and from `dir`'s (B), `args.frames` pairs of dispatches in
+/// turn, the same rays and scene buffers for both.
+pub fn compare_ray_shaders(
+    gpu: &Gpu,
+    args: &BenchArgs,
+    cases: Vec<(&'static str, Scene)>,
+    dir: &Path,
+    r: &Report,
+) -> anyhow::Result<()> {
+    let b_shaders = ShaderOverrides::read_dir(dir)?;
+    let a = RayBatch::new(gpu)?;
+    let a_shaders = gpu.shader_overrides();
+    gpu.set_shader_overrides(Some(b_shaders));
+    let b = RayBatch::new(gpu);
+    gpu.set_shader_overrides(a_shaders.map(|s| (*s).clone()));
+    let b = b?;
+    md!(
+        r,
+        "\n## Ray batches ({}x{} primary rays): A = {}, B = {}\n",
+        args.width,
+        args.height,
+        shaders_name(args),
+        dir.display()
+    );
+    let mut series = Vec::new();
+    for (case, scene) in cases {
+        let (renderer, _, rays) = ray_renderer(gpu, scene, args, AccelChoice::Software)?;
+        let buffers = renderer.scene_buffers();
+        // Warm-up: each pipeline's first dispatch.
+        a.trace_timed(gpu, buffers, &rays)?;
+        b.trace_timed(gpu, buffers, &rays)?;
+        let mut pairs = Vec::new();
+        for i in 0..args.frames {
+            let time = |batch: &RayBatch| -> anyhow::Result<f64> {
+                Ok(batch.trace_timed(gpu, buffers, &rays)?.1 * 1e3)
+            };
+            let pair = if i % 2 == 0 {
+                let a_ms = time(&a)?;
+                (a_ms, time(&b)?)
+            } else {
+                let b_ms = time(&b)?;
+                (time(&a)?, b_ms)
+            };
+            pairs.push(pair);
+        }
+        series.push((case, pairs));
+    }
+    paired_table(r, "rays_ab", args.frames, &series);
+    Ok(())
+}
+
+fn shaders_name(args: &BenchArgs) -> String {
+    args.shaders
+        .as_ref()
+        .map_or("built-in shaders".to_string(), |d| d.display().to_string())
+}
+
+/// Per series, the fastest time of A and of B and the paired ratio B / A:
+/// a Markdown table, and with `--json` one line (case `case`).
+fn paired_table(r: &Report, case: &str, pairs: u32, series: &[(&'static str, Vec<(f64, f64)>)]) {
     md!(
         r,
         "| ms | A fastest | B fastest | B / A median | quartiles | B faster |"
@@ -124,7 +191,7 @@ pub fn compare_shaders(
     let mut ratios = serde_json::Map::new();
     let mut a_min = serde_json::Map::new();
     let mut b_min = serde_json::Map::new();
-    for (name, pairs) in &series {
+    for (name, pairs) in series {
         let Some(p) = PairedRatio::of(pairs) else {
             continue;
         };
@@ -147,8 +214,8 @@ pub fn compare_shaders(
         println!(
             "{}",
             serde_json::json!({
-                "case": "scene_ab",
-                "pairs": args.frames,
+                "case": case,
+                "pairs": pairs,
                 "ratio": ratios,
                 "a_min": a_min,
                 "b_min": b_min,
@@ -156,7 +223,6 @@ pub fn compare_shaders(
             })
         );
     }
-    Ok(())
 }
 
 #[cfg(test)]

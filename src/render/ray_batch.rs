@@ -113,19 +113,34 @@ impl RayBatch {
         scene: &SceneBuffers,
         rays: &[GpuRay],
     ) -> Result<Vec<GpuHit>, GpuError> {
-        let (hits, _) = self.trace_timed(gpu, scene, rays)?;
-        Ok(hits)
+        Ok(self.trace_any(gpu, scene, None, rays, false)?.0)
     }
 
     /// As [`RayBatch::trace`], also returning the seconds from submit to
-    /// completion of the dispatch (excluding upload and readback).
+    /// completion of the dispatch alone. The batch is dispatched twice and
+    /// the second dispatch is timed: the first submission also carries the
+    /// rays' upload and the zero fill wgpu gives a new storage buffer (on
+    /// lavapipe, with the first touch of its pages, 15-20 ms for 921,600
+    /// rays: docs/performance.md), which are not the traversal's cost.
     pub fn trace_timed(
         &self,
         gpu: &Gpu,
         scene: &SceneBuffers,
         rays: &[GpuRay],
     ) -> Result<(Vec<GpuHit>, f64), GpuError> {
-        self.trace_any(gpu, scene, None, rays)
+        self.trace_any(gpu, scene, None, rays, true)
+    }
+
+    /// [`RayBatch::trace`] through the driver's structures `accel` (built
+    /// for `scene`); this batch must be the driver variant.
+    pub fn trace_driver(
+        &self,
+        gpu: &Gpu,
+        scene: &SceneBuffers,
+        accel: &DriverAccel,
+        rays: &[GpuRay],
+    ) -> Result<Vec<GpuHit>, GpuError> {
+        Ok(self.trace_any(gpu, scene, Some(accel), rays, false)?.0)
     }
 
     /// [`RayBatch::trace_timed`] through the driver's structures `accel`
@@ -137,7 +152,7 @@ impl RayBatch {
         accel: &DriverAccel,
         rays: &[GpuRay],
     ) -> Result<(Vec<GpuHit>, f64), GpuError> {
-        self.trace_any(gpu, scene, Some(accel), rays)
+        self.trace_any(gpu, scene, Some(accel), rays, true)
     }
 
     fn trace_any(
@@ -146,6 +161,7 @@ impl RayBatch {
         scene: &SceneBuffers,
         accel: Option<&DriverAccel>,
         rays: &[GpuRay],
+        timed: bool,
     ) -> Result<(Vec<GpuHit>, f64), GpuError> {
         let driver_group = match (&self.driver, accel) {
             (None, None) => None,
@@ -181,29 +197,36 @@ impl RayBatch {
             layout: &self.layout,
             entries: &entries,
         });
+        let dispatch = || {
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("ray batch pass"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(if scene.accel.csg_ops.is_empty() {
+                    &self.pipeline
+                } else {
+                    &self.csg_pipeline
+                });
+                pass.set_bind_group(SCENE_GROUP, &scene.bind_group, &[]);
+                pass.set_bind_group(PASS_GROUP, &group, &[]);
+                if let Some(driver) = &driver_group {
+                    pass.set_bind_group(driver_accel::DRIVER_GROUP, driver, &[]);
+                }
+                // At most 65,535 workgroups: up to 4 million rays per batch.
+                let groups = (rays.len() as u32).div_ceil(RAY_BATCH_WORKGROUP);
+                pass.dispatch_workgroups(groups, 1, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+        };
+        if timed {
+            // The upload and the hit buffer's zero fill ride on this one.
+            dispatch();
+        }
         gpu.wait_idle()?;
         let start = std::time::Instant::now();
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("ray batch pass"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(if scene.accel.csg_ops.is_empty() {
-                &self.pipeline
-            } else {
-                &self.csg_pipeline
-            });
-            pass.set_bind_group(SCENE_GROUP, &scene.bind_group, &[]);
-            pass.set_bind_group(PASS_GROUP, &group, &[]);
-            if let Some(driver) = &driver_group {
-                pass.set_bind_group(driver_accel::DRIVER_GROUP, driver, &[]);
-            }
-            // At most 65,535 workgroups: up to 4 million rays per batch.
-            let groups = (rays.len() as u32).div_ceil(RAY_BATCH_WORKGROUP);
-            pass.dispatch_workgroups(groups, 1, 1);
-        }
-        gpu.queue.submit([encoder.finish()]);
+        dispatch();
         gpu.wait_idle()?;
         let seconds = start.elapsed().as_secs_f64();
         let bytes = readback::copy_and_read(gpu, &hit_buffer, hit_bytes, "ray batch readback")?;
