@@ -775,3 +775,41 @@ fn deep_scene_has_no_truncated_pixels() {
     );
     assert!(grazing <= 3, "{grazing} grazing pixels");
 }
+
+/// A scene without instances shows its background and nothing else, in
+/// every mode: every pixel is the background's sRGB value, within one
+/// 8-bit level per channel (0.25, 0.5 and 0.75 pass the half-float
+/// G-buffer exactly; the driver's sRGB store may round a level away from
+/// the formula), and no pixel ran out of traversal steps. The camera looks at the origin from inside
+/// the unit cube, where the empty top level's root box once lay (an
+/// inverted box the slab test entered), which filled the view with the
+/// overflow colour.
+#[test]
+fn an_empty_scene_shows_only_its_background() {
+    let gpu = gpu();
+    let ron = r#"(
+        version: 1,
+        camera: (eye: (0.0, 0.2, 0.5), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0, width: 64, height: 36),
+        ambient: (0.1, 0.1, 0.1),
+        background: (0.25, 0.5, 0.75),
+        lights: [],
+        materials: {},
+        shapes: {},
+        instances: [],
+    )"#;
+    let scene = Scene::from_ron_str(ron, "empty.ron", std::path::Path::new(".")).unwrap();
+    let want = [0.25f32, 0.5, 0.75].map(srgb8);
+    for mode in [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace] {
+        let r = rendered(&gpu, scene.clone(), settings(&scene, mode));
+        assert_eq!(r.overflow_pixels(&gpu).unwrap(), 0, "{mode:?}: overflow");
+        let img = r.read_srgb8(&gpu).unwrap();
+        let wrong = img
+            .chunks_exact(4)
+            .filter(|p| (0..3).any(|c| p[c].abs_diff(want[c]) > 1))
+            .count();
+        assert_eq!(
+            wrong, 0,
+            "{mode:?}: {wrong} pixels are not the background {want:?}"
+        );
+    }
+}

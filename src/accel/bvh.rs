@@ -84,11 +84,16 @@ pub fn build(bounds: &[Aabb], max_leaf: usize) -> Bvh {
         depth: 1,
     };
     if bounds.is_empty() {
-        // An empty leaf whose box no ray can enter.
+        // A root whose box no ray reaches: a point at f32's far corner,
+        // beyond any ray's t_max (3e38 at most) along unit directions (a
+        // zero or negative component misses it too). An inverted box would
+        // not do: the slab test takes the planes in either order, and the
+        // root (count 0, an inner node) would lead the walk to nodes that
+        // are not its children.
         bvh.nodes[0] = BvhNode {
-            bounds_min: [1.0; 3],
+            bounds_min: [f32::MAX; 3],
             left_or_first: 0,
-            bounds_max: [-1.0; 3],
+            bounds_max: [f32::MAX; 3],
             count: 0,
         };
         return bvh;
@@ -283,6 +288,57 @@ mod tests {
                 bvh.depth <= 4 * (n as f32).log2().ceil() as u32 + 2,
                 "n = {n}, depth {}",
                 bvh.depth
+            );
+        }
+    }
+
+    /// The empty BVH's root is entered by no ray: unit directions from
+    /// the 26 axis and diagonal directions and 1,000 pseudo-random ones,
+    /// from points up to 1e4 from the origin, with t_max up to 3e38 (the
+    /// largest any query uses). An inverted box [1, -1]^3, as the root
+    /// once was, is the box [-1, 1]^3 to the slab test: the rays from the
+    /// origin would all enter it (checked here too).
+    #[test]
+    fn the_empty_root_is_entered_by_no_ray() {
+        let root = build(&[], 4).nodes[0].aabb();
+        let inverted = Aabb {
+            min: Vec3::ONE,
+            max: -Vec3::ONE,
+        };
+        let mut dirs: Vec<Vec3> = (0..27)
+            .map(|i| {
+                Vec3::new(
+                    (i % 3) as f32 - 1.0,
+                    (i / 3 % 3) as f32 - 1.0,
+                    (i / 9) as f32 - 1.0,
+                )
+            })
+            .filter(|d| *d != Vec3::ZERO)
+            .map(Vec3::normalize)
+            .collect();
+        dirs.extend((0..1000).map(|i| {
+            let u = crate::sampling::uniform(i, 1, 0) * std::f32::consts::TAU;
+            let z = crate::sampling::uniform(i, 2, 0) * 2.0 - 1.0;
+            let r = (1.0 - z * z).sqrt();
+            Vec3::new(r * u.cos(), r * u.sin(), z)
+        }));
+        for (i, d) in dirs.iter().enumerate() {
+            for o in [Vec3::ZERO, Vec3::splat(1e4), Vec3::new(-1e4, 3.0, 1e4)] {
+                let hit =
+                    crate::accel::intersect::ray_box(o, d.recip(), root.min, root.max, 0.0, 3.0e38);
+                assert_eq!(hit, None, "ray {i} from {o} along {d}");
+            }
+            let old = crate::accel::intersect::ray_box(
+                Vec3::ZERO,
+                d.recip(),
+                inverted.min,
+                inverted.max,
+                0.0,
+                3.0e38,
+            );
+            assert!(
+                old.is_some(),
+                "ray {i}: the inverted box should be entered from its inside"
             );
         }
     }
