@@ -126,8 +126,18 @@ pub fn render_frame_until_stopped(
     )))
 }
 
-/// The resolved image of what `renderer` has accumulated.
+/// The resolved image of what `renderer` has accumulated. Pixels whose
+/// traversal hit one of its limits are drawn magenta; a warning says how
+/// many, so that the colour is never the only sign.
 fn read_frame(gpu: &Gpu, renderer: &Renderer, want_linear: bool) -> Result<Frame, CaptureError> {
+    let overflow = renderer.overflow_pixels(gpu)?;
+    if overflow > 0 {
+        log::warn!(
+            "{overflow} pixel samples hit a traversal limit and are drawn magenta (the step \
+             budget of a query, the traversal stack, or a CSG tree's intervals or mesh \
+             crossings per ray: docs/csg.md)"
+        );
+    }
     Ok(Frame {
         width: renderer.settings().width,
         height: renderer.settings().height,

@@ -277,3 +277,64 @@ fn camera_path_renders_a_frame_of_the_path() {
     }
     assert!(!dir.join("x.png").exists());
 }
+
+/// Pixels whose traversal hits one of its limits are never silent: besides
+/// their magenta, `render` warns with their count. A CSG mesh leaf of five
+/// boxes in a row (one closed mesh) crossed along the row meets 10 surfaces,
+/// over the 8 a mesh leaf may hold per ray, so the pixels looking down the
+/// row overflow; seen from the side (2 crossings per box) none does, and
+/// there is no warning.
+#[test]
+fn render_warns_when_pixels_hit_a_traversal_limit() {
+    let dir = scratch("overflow");
+    let mut obj = String::new();
+    // Corner i of box b: x, y, z from bits 0, 1, 2 (0.3 either side of its
+    // centre, the centres 1 apart along z); faces wound outwards.
+    for b in 0..5 {
+        for i in 0..8 {
+            let s = |bit: u32| if i >> bit & 1 == 1 { 0.3 } else { -0.3 };
+            obj += &format!("v {} {} {}\n", s(0), s(1), s(2) + b as f64 - 2.0);
+        }
+        for q in [
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+        ] {
+            let v = q.map(|k| 8 * b + k + 1);
+            obj += &format!(
+                "f {} {} {}\nf {} {} {}\n",
+                v[0], v[1], v[2], v[0], v[2], v[3]
+            );
+        }
+    }
+    std::fs::write(dir.join("row.obj"), obj).unwrap();
+    let scene = |eye: &str| {
+        format!(
+            r#"(version: 1,
+            camera: (eye: {eye}, target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 20.0, width: 48, height: 48),
+            materials: {{ "m": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) }},
+            shapes: {{ "row": Difference(Mesh(path: "row.obj"), Sphere(radius: 0.1, transform: (translate: (5.0, 0.0, 0.0)))) }},
+            instances: [(shape: "row", material: "m")],
+        )"#
+        )
+    };
+    for (name, eye, overflows) in [
+        ("along.ron", "(0.05, 0.02, 8.0)", true),
+        ("across.ron", "(8.0, 0.02, 0.05)", false),
+    ] {
+        std::fs::write(dir.join(name), scene(eye)).unwrap();
+        let o = celray(
+            &[
+                "render", name, "-o", "out.png", "--mode", "raytrace", "--spp", "1", "--quiet",
+            ],
+            &dir,
+        );
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        std::fs::remove_file(dir.join("out.png")).unwrap();
+        let warned = stderr(&o).contains("hit a traversal limit");
+        assert_eq!(warned, overflows, "{name}: {}", stderr(&o));
+    }
+}
