@@ -642,14 +642,17 @@ fn shadow_split_row(gpu: &Gpu, args: &BenchArgs, r: &Report) -> anyhow::Result<(
     Ok(())
 }
 
-/// The scenes of `bench rays --compare-shaders`: the ray cases' own.
+/// The scenes of `bench rays --compare-shaders`: the ray cases' own
+/// (helmet_rays skipped, with a line saying so, without the models).
 fn ray_ab_cases(
     args: &BenchArgs,
     helmet: Option<Scene>,
+    r: &Report,
 ) -> anyhow::Result<Vec<(&'static str, Scene)>> {
     let mut cases = Vec::new();
-    if let Some(helmet) = helmet {
-        cases.push(("helmet_rays", helmet));
+    match helmet {
+        Some(helmet) => cases.push(("helmet_rays", helmet)),
+        None => r.skipped("helmet_rays", &missing_helmet(args)),
     }
     cases.push(("spot_10000_rays", grid(&spot_scene(args)?, 10_000, 1.1)));
     cases.push(("spheres_100_rays", ball_grid(args, 100)?));
@@ -1081,7 +1084,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
         "floor" => Ok(()),
         "raster" => raster_suite(gpu, args, helmet.as_ref(), r),
         "rays" => match &args.compare_shaders {
-            Some(dir) => ab::compare_ray_shaders(gpu, args, ray_ab_cases(args, helmet)?, dir, r),
+            Some(dir) => ab::compare_ray_shaders(gpu, args, ray_ab_cases(args, helmet, r)?, dir, r),
             None => rays_suite(gpu, args, helmet.as_ref(), r),
         },
         "effects" => {

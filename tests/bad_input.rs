@@ -129,6 +129,10 @@ fn counts_past_their_bounds_are_refused_naming_the_bound() {
             &["bench", "floor", "--shaders", "no-such-folder"],
             "--shaders no-such-folder: not a folder",
         ),
+        case(
+            &["bench", "raster", "--compare-shaders", "."],
+            "suites `scene`",
+        ),
     ];
     if cfg!(feature = "app") {
         // Refused before any window is opened.

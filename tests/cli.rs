@@ -338,3 +338,47 @@ fn render_warns_when_pixels_hit_a_traversal_limit() {
         assert_eq!(warned, overflows, "{name}: {}", stderr(&o));
     }
 }
+
+/// `bench rays --compare-shaders DIR` pairs the ray-batch kernel of the
+/// built-in shaders (A) with DIR's (B) on each ray case: one JSON line with
+/// both fastest times and the median ratio per case, and a skipped line
+/// for helmet_rays when the models are missing. (Tiny images: this checks
+/// the report, not the speed.)
+#[test]
+fn bench_rays_compare_shaders_reports_each_ray_case() {
+    let dir = scratch("rays_ab");
+    let shaders = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    let o = celray(
+        &[
+            "bench",
+            "rays",
+            "--compare-shaders",
+            shaders.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "36",
+            "--frames",
+            "2",
+            "--models",
+            dir.to_str().unwrap(),
+            "--json",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    let case = |name: &str| lines.iter().find(|l| l["case"] == name);
+    assert!(case("helmet_rays").is_some_and(|l| l["skipped"].is_string()));
+    let ab = case("rays_ab").expect("a rays_ab line");
+    assert_eq!(ab["pairs"], 2);
+    for name in ["spot_10000_rays", "spheres_100_rays"] {
+        for key in ["a_min", "b_min", "ratio"] {
+            let v = ab[key][name].as_f64().unwrap_or(0.0);
+            assert!(v > 0.0, "{key}.{name} = {}", ab[key][name]);
+        }
+    }
+}
