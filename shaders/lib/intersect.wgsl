@@ -187,31 +187,28 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
 // it within (t_min, t_max). It reads only the corners: a traversal tests
 // many triangles and needs the normals of its closest hit alone
 // (triangle_hit), and on the CPU driver every field read is a gather.
+//
+// Without branches: every test is computed and the answer selected once.
+// The CPU driver runs 8 invocations as one program, and each early return
+// cost a mask update and an any-lane check on every triangle; the tests
+// with non-short-circuit `&` and `|` (WGSL's `&&` and `||` branch) took
+// 4-7% off mesh ray batches and 2-3% off trace passes with meshes
+// (docs/performance.md, thirteenth session). Same arithmetic, same answers.
 fn triangle_tuv(o: vec3<f32>, d: vec3<f32>, k: u32, t_min: f32, t_max: f32) -> vec4<f32> {
     let p0 = triangles[k].p0.xyz;
     let e1 = triangles[k].p1.xyz - p0;
     let e2 = triangles[k].p2.xyz - p0;
     let pv = cross(d, e2);
     let det = dot(e1, pv);
-    if det == 0.0 {
-        return vec4<f32>(0.0);
-    }
     let inv = 1.0 / det;
     let tv = o - p0;
     let u = dot(tv, pv) * inv;
-    if u < 0.0 || u > 1.0 {
-        return vec4<f32>(0.0);
-    }
     let qv = cross(tv, e1);
     let v = dot(d, qv) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return vec4<f32>(0.0);
-    }
     let t = dot(e2, qv) * inv;
-    if !in_range(t, t_min, t_max) {
-        return vec4<f32>(0.0);
-    }
-    return vec4<f32>(t, u, v, 1.0);
+    // The same comparisons as the early returns they replace (NaN included).
+    let inside = (det != 0.0) & !((u < 0.0) | (u > 1.0)) & !((v < 0.0) | (u + v > 1.0)) & (t > t_min) & (t < t_max);
+    return select(vec4<f32>(0.0), vec4<f32>(t, u, v, 1.0), inside);
 }
 
 // The hit on triangle k at (t, u, v) from triangle_tuv: the shading normal
