@@ -148,14 +148,13 @@ pub fn compare_ray_shaders(
     for (case, scene) in cases {
         let (renderer, _, rays) = ray_renderer(gpu, scene, args, AccelChoice::Software)?;
         let buffers = renderer.scene_buffers();
-        // Warm-up: each pipeline's first dispatch.
-        a.trace_timed(gpu, buffers, &rays)?;
-        b.trace_timed(gpu, buffers, &rays)?;
+        // trace_timed runs each batch once untimed before the timed
+        // dispatch: no separate warm-up.
+        let time = |batch: &RayBatch| -> anyhow::Result<f64> {
+            Ok(batch.trace_timed(gpu, buffers, &rays)?.1 * 1e3)
+        };
         let mut pairs = Vec::new();
         for i in 0..args.frames {
-            let time = |batch: &RayBatch| -> anyhow::Result<f64> {
-                Ok(batch.trace_timed(gpu, buffers, &rays)?.1 * 1e3)
-            };
             let pair = if i % 2 == 0 {
                 let a_ms = time(&a)?;
                 (a_ms, time(&b)?)
