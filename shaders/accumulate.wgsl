@@ -67,7 +67,7 @@ fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
             id = gbuffer_id(q);
             if id != 0u {
                 nd = gbuffer_normal_depth(q);
-                let width = materials[instances[id - 1u].material].outline_width_px;
+                let width = load_material(load_instance(id - 1u).material).outline_width_px;
                 width2 = width * width;
             }
         }
@@ -125,7 +125,7 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
     if best_id == 0u {
         return vec4<f32>(0.0);
     }
-    return vec4<f32>(materials[instances[best_id - 1u].material].outline_color, 1.0);
+    return vec4<f32>(load_material(load_instance(best_id - 1u).material).outline_color, 1.0);
 }
 
 // SOURCE_BIT, ROUGH_BIT and UNEVEN_BIT of every texel of the loaded tile

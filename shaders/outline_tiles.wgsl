@@ -47,7 +47,7 @@
 
 
 fn outline_width(id: u32) -> f32 {
-    return materials[instances[id - 1u].material].outline_width_px;
+    return load_material(load_instance(id - 1u).material).outline_width_px;
 }
 
 @compute @workgroup_size(OUTLINE_TILES_WORKGROUP)

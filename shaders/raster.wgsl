@@ -45,27 +45,27 @@ struct VsOut {
 // inputs left zero).
 fn shade_vertex(position: vec3<f32>, normal: vec3<f32>, instance: u32) -> VsOut {
     // Field by field: copying the whole struct costs on CPU drivers.
-    let p = instances[instance].world_from_object * vec4<f32>(position, 1.0);
+    let p = load_instance(instance).world_from_object * vec4<f32>(position, 1.0);
     var out: VsOut;
     out.clip = frame.clip_from_world * p;
     out.world_pos = p.xyz;
-    out.world_normal = (instances[instance].normal_from_object * vec4<f32>(normal, 0.0)).xyz;
-    let material = instances[instance].material;
-    out.ids = vec4<u32>(instance, material, instances[instance].mirrored, NO_TEXTURE);
-    out.base_shininess = vec4<f32>(materials[material].base_color, materials[material].shininess);
-    out.specular = vec4<f32>(materials[material].specular_color, materials[material].specular_threshold);
-    out.rim = vec4<f32>(materials[material].rim_color, materials[material].rim_threshold);
-    out.model_bands = vec2<u32>(materials[material].model, materials[material].band_count);
+    out.world_normal = (load_instance(instance).normal_from_object * vec4<f32>(normal, 0.0)).xyz;
+    let material = load_instance(instance).material;
+    out.ids = vec4<u32>(instance, material, load_instance(instance).mirrored, NO_TEXTURE);
+    out.base_shininess = vec4<f32>(load_material(material).base_color, load_material(material).shininess);
+    out.specular = vec4<f32>(load_material(material).specular_color, load_material(material).specular_threshold);
+    out.rim = vec4<f32>(load_material(material).rim_color, load_material(material).rim_threshold);
+    out.model_bands = vec2<u32>(load_material(material).model, load_material(material).band_count);
     // Only the thresholds the scene's materials fill (lib/shading.wgsl).
-    out.thresholds0 = materials[material].thresholds[0];
+    out.thresholds0 = load_material(material).thresholds[0];
     if TOON_THRESHOLD_VECS > 1u {
-        out.thresholds1 = materials[material].thresholds[1];
+        out.thresholds1 = load_material(material).thresholds[1];
     }
     if TOON_THRESHOLD_VECS > 2u {
-        out.thresholds2 = materials[material].thresholds[2];
+        out.thresholds2 = load_material(material).thresholds[2];
     }
     if TOON_THRESHOLD_VECS > 3u {
-        out.thresholds3 = materials[material].thresholds[3];
+        out.thresholds3 = load_material(material).thresholds[3];
     }
     return out;
 }
@@ -160,12 +160,12 @@ fn fs_textured(in: VsOut, @builtin(front_facing) front_facing: bool) -> GBufferT
     var m = flat_material(in);
     // The fields raster_albedo reads, one load each (not the whole struct).
     let material = in.ids.y;
-    m.checker_a = materials[material].checker_a;
-    m.checker_size = materials[material].checker_size;
-    m.checker_b = materials[material].checker_b;
-    m.texture_layer = materials[material].texture_layer;
-    m.uv_scale = materials[material].uv_scale;
-    m.texture_nearest = materials[material].texture_nearest;
+    m.checker_a = load_material(material).checker_a;
+    m.checker_size = load_material(material).checker_size;
+    m.checker_b = load_material(material).checker_b;
+    m.texture_layer = load_material(material).texture_layer;
+    m.uv_scale = load_material(material).uv_scale;
+    m.texture_nearest = load_material(material).texture_nearest;
     m.base_color = raster_albedo(in, m);
     let g = shade_fragment(m, in.world_pos, in.world_normal, in.ids.x, in.ids.z, front_facing);
     return GBufferTextured(g.color, g.normal_depth, g.id, vec4<f32>(m.base_color, 1.0));
@@ -187,7 +187,7 @@ fn raster_albedo(in: VsOut, m: GpuMaterial) -> vec3<f32> {
     let dp_dy = dpdyFine(in.object_pos);
     var dx = dpdxFine(in.uv);
     var dy = dpdyFine(in.uv);
-    let shape = shapes[instances[in.ids.x].shape];
+    let shape = load_shape(load_instance(in.ids.x).shape);
     var uv = in.uv;
     if shape.kind != SHAPE_MESH {
         let p = in.object_pos;

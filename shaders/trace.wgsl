@@ -202,7 +202,7 @@ fn triangle_uv(tri: GpuTriangle, p: vec3<f32>) -> vec2<f32> {
 // The mesh's own map at a hit (NO_TEXTURE when the hit is not on a mesh
 // triangle or the triangle has none).
 fn mesh_map(hit: TraceHit) -> u32 {
-    if shapes[instances[hit.instance].shape].kind != SHAPE_MESH {
+    if load_shape(load_instance(hit.instance).shape).kind != SHAPE_MESH {
         return NO_TEXTURE;
     }
     return triangle_maps[hit_triangle];
@@ -216,15 +216,15 @@ fn mesh_map(hit: TraceHit) -> u32 {
 // derivatives do per pixel.
 fn traced_albedo(hit: TraceHit, m: GpuMaterial, p: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>) -> vec3<f32> {
     let inst = hit.instance;
-    let to_object = instances[inst].object_from_world;
+    let to_object = load_instance(inst).object_from_world;
     let po = (to_object * vec4<f32>(p, 1.0)).xyz;
     if m.checker_size > 0.0 {
         return checker(m, po);
     }
-    let no = (transpose(instances[inst].world_from_object) * vec4<f32>(hit.normal, 0.0)).xyz;
+    let no = (transpose(load_instance(inst).world_from_object) * vec4<f32>(hit.normal, 0.0)).xyz;
     let q1 = (to_object * vec4<f32>(p + e1, 1.0)).xyz;
     let q2 = (to_object * vec4<f32>(p + e2, 1.0)).xyz;
-    let shape = shapes[instances[inst].shape];
+    let shape = load_shape(load_instance(inst).shape);
     var uv0: vec2<f32>;
     var uv1: vec2<f32>;
     var uv2: vec2<f32>;
@@ -329,7 +329,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
             let t_raster = (nd.w - dot(o - eye, forward)) / dot(d, forward);
             if t_raster < hit.t {
                 // The raster normal already faces the viewer.
-                hit = TraceHit(t_raster, id - 1u, nd.xyz, nd.xyz, instances[id - 1u].material);
+                hit = TraceHit(t_raster, id - 1u, nd.xyz, nd.xyz, load_instance(id - 1u).material);
                 from_raster = true;
             }
         }
@@ -356,7 +356,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         }
         let p = o + d * hit.t;
         let n = facing_normal(hit, d);
-        var m = materials[hit.material];
+        var m = load_material(hit.material);
         if TEXTURES_ENABLED {
             cone_width += cone_spread * hit.t;
             if from_raster {

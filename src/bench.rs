@@ -78,6 +78,11 @@ pub struct BenchArgs {
     /// dispatch by dispatch.
     #[arg(long, value_name = "DIR")]
     pub compare_shaders: Option<PathBuf>,
+    /// Read every scene table from its storage buffer, none from the
+    /// uniform copies the small ones have otherwise (gpu::uniform_tables):
+    /// the same images, to time what the copies save.
+    #[arg(long)]
+    pub storage_tables: bool,
     /// The global `--accel` (set by main): what the frame cases walk.
     #[arg(skip)]
     pub accel: celray::render::AccelChoice,
@@ -1048,6 +1053,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
     if args.frames == 0 {
         anyhow::bail!("--frames must be at least 1 (frames timed per case)");
     }
+    gpu.set_uniform_tables(!args.storage_tables);
     // Suite `scene`: the file is read (and refused) before anything runs.
     let own_scene = match (args.suite.as_str(), &args.scene) {
         ("scene", Some(path)) => Some((path.as_path(), Scene::load(path)?)),

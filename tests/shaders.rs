@@ -753,7 +753,7 @@ fn scene_group_is_declared_once() {
         .collect();
     assert_eq!(
         scene_names.len(),
-        13,
+        20,
         "scene bindings parsed: {scene_names:?}"
     );
     let names_binding = |text: &str, name: &str| {
@@ -791,4 +791,66 @@ fn scene_group_is_declared_once() {
         }
     }
     assert!(users > 0, "no pass includes {SCENE}");
+}
+
+/// Each uniform copy of a scene table (gpu::uniform_tables) is declared in
+/// WGSL as as many whole elements as fit in UNIFORM_TABLE_BYTES (what the
+/// buffer holds), each element what the storage table's are (or four
+/// top-level items and two CSG instructions to a vec4: the same bytes), so
+/// that a table of n elements, which the Rust side copies when n elements
+/// of storage fit, is read at the same indices.
+#[test]
+fn uniform_table_copies_hold_the_storage_tables_bytes() {
+    use celray::gpu::uniform_tables::{Table, UNIFORM_TABLE_BYTES};
+    use naga::{AddressSpace, ArraySize, ResourceBinding, TypeInner};
+    let module = parse("trace.wgsl");
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).unwrap();
+    let array_at = |binding: u32| {
+        let (_, var) = module
+            .global_variables
+            .iter()
+            .find(|(_, v)| v.binding == Some(ResourceBinding { group: 0, binding }))
+            .unwrap_or_else(|| panic!("no scene binding {binding}"));
+        match module.types[var.ty].inner {
+            TypeInner::Array { size, stride, .. } => {
+                (var.space, size, stride, layouter[var.ty].size)
+            }
+            ref other => panic!("binding {binding} is {other:?}, not an array"),
+        }
+    };
+    // The storage bindings of the same tables (lib/scene_bindings.wgsl).
+    let storage_binding = |t: Table| match t {
+        Table::Nodes => 4,
+        Table::Instances => 0,
+        Table::Shapes => 3,
+        Table::TlasItems => 6,
+        Table::Materials => 1,
+        Table::CsgOps => 7,
+        Table::CsgLeaves => 8,
+    };
+    for t in Table::ALL {
+        let (space, size, stride, bytes) = array_at(t.binding());
+        assert_eq!(space, AddressSpace::Uniform, "{t:?}");
+        let ArraySize::Constant(n) = size else {
+            panic!("{t:?}: the uniform copy has no fixed length");
+        };
+        assert_eq!(n.get(), t.uniform_length(), "{t:?}");
+        assert!(bytes <= UNIFORM_TABLE_BYTES, "{t:?}: {bytes} bytes");
+        assert!(
+            bytes + stride > UNIFORM_TABLE_BYTES,
+            "{t:?}: room for one more"
+        );
+        let (_, _, storage_stride, _) = array_at(storage_binding(t));
+        let per_element = match t {
+            Table::TlasItems => 4,
+            Table::CsgOps => 2,
+            _ => 1,
+        };
+        assert_eq!(stride, storage_stride * per_element, "{t:?}: element size");
+        // A table fits exactly when its bytes are within the copy.
+        let fitting = (bytes / storage_stride) as usize;
+        assert!(t.fits(fitting * storage_stride as usize), "{t:?}");
+        assert!(!t.fits((fitting + 1) * storage_stride as usize), "{t:?}");
+    }
 }

@@ -1,7 +1,7 @@
 // CSG by intervals: the WGSL twin of src/accel/csg.rs (same steps, same
 // order, same epsilon). A CSG shape's `blas_root` is the first instruction
 // of its postfix program in `csg_ops`; a leaf instruction pushes the spans
-// of t where the ray is inside that leaf (`csg_leaves[arg]`), a set
+// of t where the ray is inside that leaf (`load_csg_leaf(arg)`), a set
 // operation pops two span lists and pushes their union, intersection or
 // difference. A list is a sorted run of endpoints (entry, exit, ...), each
 // with the outward normal of the partial solid (CSG object space, not unit)
@@ -142,7 +142,7 @@ fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f
         if !take_step() {
             return;
         }
-        let node = nodes[current];
+        let node = load_node(current);
         if node.count == 0u {
             current = descend(node, o, inv_d, -CSG_FAR, CSG_FAR, &sp);
             continue;
@@ -295,7 +295,7 @@ fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
         if !take_step() {
             return no_hit();
         }
-        let op = csg_ops[pc];
+        let op = load_csg_op(pc);
         pc += 1u;
         if op.op == CSG_OP_END {
             break;
@@ -305,7 +305,7 @@ fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
                 overflowed = true;
                 return no_hit();
             }
-            csg_leaf(&csg_store, csg_store.slot[sp], csg_leaves[op.arg], o, d, base);
+            csg_leaf(&csg_store, csg_store.slot[sp], load_csg_leaf(op.arg), o, d, base);
         } else {
             if sp < 2u {
                 overflowed = true;

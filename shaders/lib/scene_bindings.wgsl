@@ -25,3 +25,75 @@
 @group(0) @binding(10) var base_color_maps: texture_2d_array<f32>;
 @group(0) @binding(11) var map_linear: sampler;
 @group(0) @binding(12) var map_nearest: sampler;
+
+// The small tables again, as uniform buffers (src/gpu/uniform_tables.rs):
+// on the CPU driver a uniform read at a per-invocation index is one
+// branchless gather, a storage read a loop over the 8 lanes with two
+// branches a word. Bit TABLE_* of UNIFORM_TABLES (set per pipeline, from
+// which tables of the scene fit) says which copy the accessors below read;
+// the other one's code is not in the pipeline. The top-level items and
+// the CSG instructions are packed four and two to a vec4 (a uniform
+// array's stride is a multiple of 16 bytes): the storage layout.
+override UNIFORM_TABLES: u32 = 0u;
+@group(0) @binding(13) var<uniform> nodes_u: array<BvhNode, UNIFORM_NODES>;
+@group(0) @binding(14) var<uniform> instances_u: array<GpuInstance, UNIFORM_INSTANCES>;
+@group(0) @binding(15) var<uniform> shapes_u: array<GpuShape, UNIFORM_SHAPES>;
+@group(0) @binding(16) var<uniform> tlas_items_u: array<vec4<u32>, UNIFORM_TLAS_ITEM_VECS>;
+@group(0) @binding(17) var<uniform> materials_u: array<GpuMaterial, UNIFORM_MATERIALS>;
+@group(0) @binding(18) var<uniform> csg_ops_u: array<vec4<u32>, UNIFORM_CSG_OP_VECS>;
+@group(0) @binding(19) var<uniform> csg_leaves_u: array<GpuCsgLeaf, UNIFORM_CSG_LEAVES>;
+
+fn uniform_table(table: u32) -> bool {
+    return (UNIFORM_TABLES & table) != 0u;
+}
+
+fn load_node(i: u32) -> BvhNode {
+    if uniform_table(TABLE_NODES) {
+        return nodes_u[i];
+    }
+    return nodes[i];
+}
+
+fn load_instance(i: u32) -> GpuInstance {
+    if uniform_table(TABLE_INSTANCES) {
+        return instances_u[i];
+    }
+    return instances[i];
+}
+
+fn load_shape(i: u32) -> GpuShape {
+    if uniform_table(TABLE_SHAPES) {
+        return shapes_u[i];
+    }
+    return shapes[i];
+}
+
+fn load_tlas_item(k: u32) -> u32 {
+    if uniform_table(TABLE_TLAS_ITEMS) {
+        return tlas_items_u[k / 4u][k % 4u];
+    }
+    return tlas_items[k];
+}
+
+fn load_material(i: u32) -> GpuMaterial {
+    if uniform_table(TABLE_MATERIALS) {
+        return materials_u[i];
+    }
+    return materials[i];
+}
+
+fn load_csg_op(i: u32) -> GpuCsgOp {
+    if uniform_table(TABLE_CSG_OPS) {
+        let pair = csg_ops_u[i / 2u];
+        let op = select(pair.xy, pair.zw, (i & 1u) == 1u);
+        return GpuCsgOp(op.x, op.y);
+    }
+    return csg_ops[i];
+}
+
+fn load_csg_leaf(i: u32) -> GpuCsgLeaf {
+    if uniform_table(TABLE_CSG_LEAVES) {
+        return csg_leaves_u[i];
+    }
+    return csg_leaves[i];
+}

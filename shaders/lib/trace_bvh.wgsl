@@ -24,23 +24,23 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
         if !take_step() {
             break;
         }
-        let node = nodes[current];
+        let node = load_node(current);
         if node.count == 0u {
             current = descend(node, o, inv_d, t_min, best.t, &sp);
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
-            let inst = tlas_items[k];
-            let shape = instances[inst].shape;
-            if skip_meshes && shapes[shape].kind == SHAPE_MESH {
+            let inst = load_tlas_item(k);
+            let shape = load_instance(inst).shape;
+            if skip_meshes && load_shape(shape).kind == SHAPE_MESH {
                 continue;
             }
-            let m = instances[inst].object_from_world;
+            let m = load_instance(inst).object_from_world;
             let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, best.t, sp);
             if h.hit {
                 best.t = h.t;
                 best.instance = inst;
-                best.material = select(object_material, instances[inst].material, object_material == CSG_NO_MATERIAL);
+                best.material = select(object_material, load_instance(inst).material, object_material == CSG_NO_MATERIAL);
                 object_normal = h.normal;
                 object_geometric = h.geometric;
                 hit_triangle = mesh_triangle;
@@ -52,7 +52,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
         current = NO_HIT;
     }
     if best.instance != NO_HIT {
-        let to_world = instances[best.instance].normal_from_object;
+        let to_world = load_instance(best.instance).normal_from_object;
         best.normal = normalize((to_world * vec4<f32>(object_normal, 0.0)).xyz);
         best.geometric = normalize((to_world * vec4<f32>(object_geometric, 0.0)).xyz);
     }

@@ -59,12 +59,12 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
             t_hi = min(t_hi, committed.t);
         }
         let inst = cand.instance_custom_data;
-        let m = instances[inst].object_from_world;
-        let h = intersect_instance_shape(instances[inst].shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, t_hi, 0u);
+        let m = load_instance(inst).object_from_world;
+        let h = intersect_instance_shape(load_instance(inst).shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, t_hi, 0u);
         if h.hit {
             gen_normal = h.normal;
             gen_geometric = h.geometric;
-            gen_material = select(object_material, instances[inst].material, object_material == CSG_NO_MATERIAL);
+            gen_material = select(object_material, load_instance(inst).material, object_material == CSG_NO_MATERIAL);
             gen_instance = inst;
             gen_triangle = mesh_triangle;
             // A named value: naga 30 does not emit an expression written
@@ -91,16 +91,16 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     if triangle {
         inst = c.instance_custom_data;
         best.t = c.t;
-        hit_triangle = rq_mesh_base[instances[inst].shape] + c.primitive_index;
+        hit_triangle = rq_mesh_base[load_instance(inst).shape] + c.primitive_index;
         let tri = triangles[hit_triangle];
         let u = c.barycentrics.x;
         let v = c.barycentrics.y;
         object_normal = tri.n0.xyz * (1.0 - u - v) + tri.n1.xyz * u + tri.n2.xyz * v;
         object_geometric = cross(tri.p1.xyz - tri.p0.xyz, tri.p2.xyz - tri.p0.xyz);
-        best.material = instances[inst].material;
+        best.material = load_instance(inst).material;
     }
     best.instance = inst;
-    let to_world = instances[inst].normal_from_object;
+    let to_world = load_instance(inst).normal_from_object;
     best.normal = normalize((to_world * vec4<f32>(object_normal, 0.0)).xyz);
     best.geometric = normalize((to_world * vec4<f32>(object_geometric, 0.0)).xyz);
     return best;

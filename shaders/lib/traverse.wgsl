@@ -59,7 +59,7 @@ fn node_span(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f
 }
 
 fn box_entry(i: u32, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
-    let s = node_span(nodes[i], o, inv_d, t_min, t_max);
+    let s = node_span(load_node(i), o, inv_d, t_min, t_max);
     return select(3.0e38, s.x, s.x <= s.y);
 }
 
@@ -112,7 +112,7 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
         if !take_step() {
             break;
         }
-        let node = nodes[current];
+        let node = load_node(current);
         if node.count == 0u {
             current = descend(node, o, inv_d, t_min, t_best, &sp);
             continue;
@@ -135,7 +135,7 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
 }
 
 fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, base: u32) -> ObjectHit {
-    let s = shapes[shape];
+    let s = load_shape(shape);
     object_material = CSG_NO_MATERIAL;
     if CSG_ENABLED && s.kind == SHAPE_CSG {
         // Rays that miss the solid's bounding sphere skip the evaluation.

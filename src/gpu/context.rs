@@ -1,8 +1,10 @@
 //! The wgpu instance, adapter choice and device, headless or for a window.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use crate::gpu::shader::ShaderOverrides;
+use crate::gpu::uniform_tables::UNIFORM_TABLE_BYTES;
 use crate::gpu::GpuError;
 
 /// Which adapter to use: `auto`, `software` or a substring of the adapter name.
@@ -94,6 +96,10 @@ pub struct Gpu {
     /// Shader files read from disk (hot reload), used instead of the
     /// embedded ones by passes created from now on.
     shader_overrides: Mutex<Option<Arc<ShaderOverrides>>>,
+    /// Whether scenes uploaded from now on read their small tables from
+    /// uniform copies (gpu::uniform_tables); tests and benchmarks turn it
+    /// off to compare with the storage reads.
+    uniform_tables: AtomicBool,
 }
 
 const INSTALL_HINT: &str = "no GPU adapter found. celray needs a Vulkan driver; \
@@ -203,6 +209,16 @@ impl Gpu {
             } else {
                 wgpu::ExperimentalFeatures::disabled()
             };
+        // The scene's small tables have uniform copies of this size
+        // (gpu::uniform_tables): WebGPU's default, which Vulkan drivers meet.
+        let uniform_limit = adapter.limits().max_uniform_buffer_binding_size;
+        if uniform_limit < u64::from(UNIFORM_TABLE_BYTES) {
+            return Err(GpuError::Limit {
+                what: format!("{summary}: celray's uniform binding size (bytes)"),
+                value: u64::from(UNIFORM_TABLE_BYTES),
+                limit: uniform_limit,
+            });
+        }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("celray device"),
             required_features,
@@ -229,7 +245,19 @@ impl Gpu {
             summary,
             uncaptured,
             shader_overrides: Mutex::new(None),
+            uniform_tables: AtomicBool::new(true),
         })
+    }
+
+    /// Whether scenes uploaded from now on may read small tables from
+    /// uniform copies (on by default; off: every table from storage, the
+    /// same images, for tests and benchmarks).
+    pub fn set_uniform_tables(&self, on: bool) {
+        self.uniform_tables.store(on, Ordering::Relaxed);
+    }
+
+    pub fn uniform_tables(&self) -> bool {
+        self.uniform_tables.load(Ordering::Relaxed)
     }
 
     /// Whether this device has wgpu's ray queries enabled (the driver

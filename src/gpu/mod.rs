@@ -11,6 +11,7 @@ pub mod readback;
 pub mod shader;
 pub mod timer;
 pub mod twins;
+pub mod uniform_tables;
 
 pub use context::{list_adapters, pick_adapter, AdapterChoice, AdapterSummary, Gpu};
 

@@ -10,6 +10,7 @@
 use std::sync::OnceLock;
 
 use crate::gpu::twins;
+use crate::gpu::uniform_tables::Table;
 use crate::gpu::GpuError;
 
 /// The include [`compose`] generates from Rust constants rather than reads
@@ -24,7 +25,7 @@ type F32Limit = (&'static str, f32);
 /// Every `u32` constant of [`limits_header`], by its WGSL name.
 pub fn u32_limits() -> Vec<U32Limit> {
     use crate::scene::{CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK};
-    vec![
+    let mut limits = vec![
         ("TRAVERSAL_STACK", twins::TRAVERSAL_STACK),
         ("MAX_TRAVERSAL_STEPS", twins::MAX_TRAVERSAL_STEPS),
         ("MAX_INVOCATION_STEPS", twins::MAX_INVOCATION_STEPS),
@@ -56,7 +57,12 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("ACCUMULATE_WORKGROUP", twins::ACCUMULATE_WORKGROUP),
         ("OUTLINE_TILES_WORKGROUP", twins::OUTLINE_TILES_WORKGROUP),
         ("REPROJECT_WORKGROUP", twins::REPROJECT_WORKGROUP),
-    ]
+    ];
+    for table in Table::ALL {
+        limits.push((table.bit_name(), table.bit()));
+        limits.push((table.length_name(), table.uniform_length()));
+    }
+    limits
 }
 
 /// Every `f32` constant of [`limits_header`], by its WGSL name.

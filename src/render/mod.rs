@@ -378,8 +378,7 @@ impl Renderer {
                 .iter()
                 .map(|m| scene_buffers::material_to_gpu(m, &self.buffers.textures))
                 .collect();
-            gpu.queue
-                .write_buffer(&self.buffers.materials, 0, bytemuck::cast_slice(&materials));
+            self.buffers.write_materials(gpu, &materials);
         }
         if !scene.lights.is_empty() {
             let lights: Vec<_> = scene

@@ -8,6 +8,7 @@ use std::collections::HashMap;
 use glam::{Mat3, Vec3};
 
 use crate::gpu::twins::{Vertex, FAR_DEPTH};
+use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::camera::SampleCamera;
 use crate::render::scene_buffers::{
@@ -43,6 +44,8 @@ pub struct RasterVariant {
     shading: ShadingVariant,
     /// The lights' count and kinds, when fixed.
     lights: LightLayout,
+    /// The tables read from their uniform copies.
+    tables: UniformTables,
 }
 
 /// Group 1 of the raster pass, binding by binding as `shaders/raster.wgsl`
@@ -86,6 +89,7 @@ impl RasterPass {
             textures: buffers.uses_textures,
             shading: ShadingVariant::of(&scene.materials, &scene.lights),
             lights: LightLayout::of(&scene.lights),
+            tables: buffers.tables,
         }
     }
 
@@ -255,6 +259,7 @@ fn raster_pipelines(
     let textures = variant.textures;
     let mut constants = variant.shading.constants().to_vec();
     constants.extend(variant.lights.constants());
+    constants.push(variant.tables.constant());
     let options = || wgpu::PipelineCompilationOptions {
         constants: &constants,
         ..Default::default()

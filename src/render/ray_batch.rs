@@ -3,11 +3,15 @@
 //! ray-throughput benchmark times. Group 0 is the scene's shared group,
 //! group 1 [`PASS_LAYOUT`] (the rays and their hits).
 
+use std::collections::HashMap;
+use std::sync::Mutex;
+
 use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{buffer_entries, read_only_storage_entry, read_write_storage_entry};
 use crate::gpu::shader::Traversal;
 use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP};
+use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
 use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
@@ -20,13 +24,17 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 2] = [
 ];
 
 pub struct RayBatch {
-    /// Without and with the CSG code (override `CSG_ENABLED`): the first
-    /// serves scenes without CSG shapes, as in the trace pass.
-    pipeline: wgpu::ComputePipeline,
-    csg_pipeline: wgpu::ComputePipeline,
+    module: wgpu::ShaderModule,
+    scene_layout: wgpu::BindGroupLayout,
     layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
     /// The layout of group 2 of the driver variant, when built so.
     driver: Option<wgpu::BindGroupLayout>,
+    any_hit: bool,
+    /// By whether the scene has CSG shapes (override `CSG_ENABLED`, as in
+    /// the trace pass) and which tables it reads from uniform copies; built
+    /// the first time a scene needs one.
+    pipelines: Mutex<HashMap<(bool, UniformTables), wgpu::ComputePipeline>>,
 }
 
 impl RayBatch {
@@ -67,17 +75,37 @@ impl RayBatch {
                     });
             let driver =
                 (traversal == Traversal::Driver).then(|| driver_accel::bind_group_layout(gpu));
-            let make = |csg: bool| {
+            RayBatch {
+                module,
+                scene_layout,
+                layout,
+                pipeline_layout,
+                driver,
+                any_hit,
+                pipelines: Mutex::new(HashMap::new()),
+            }
+        })
+    }
+
+    /// The pipeline for `scene`, built the first time.
+    fn pipeline_for(&self, gpu: &Gpu, scene: &SceneBuffers) -> wgpu::ComputePipeline {
+        let csg = !scene.accel.csg_ops.is_empty();
+        let key = (csg, scene.tables);
+        let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        pipelines
+            .entry(key)
+            .or_insert_with(|| {
                 let constants = [
                     ("CSG_ENABLED", f64::from(u8::from(csg))),
-                    ("ANY_HIT", f64::from(u8::from(any_hit))),
+                    ("ANY_HIT", f64::from(u8::from(self.any_hit))),
+                    scene.tables.constant(),
                 ];
-                if let Some(driver_layout) = &driver {
+                if let Some(driver_layout) = &self.driver {
                     return driver_accel::pipeline(
                         gpu,
                         "ray batch pipeline (driver ray queries)",
-                        &module,
-                        &[&scene_layout, &layout],
+                        &self.module,
+                        &[&self.scene_layout, &self.layout],
                         driver_layout,
                         &constants,
                     );
@@ -85,8 +113,8 @@ impl RayBatch {
                 gpu.device
                     .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                         label: Some("ray batch pipeline"),
-                        layout: Some(&pipeline_layout),
-                        module: &module,
+                        layout: Some(&self.pipeline_layout),
+                        module: &self.module,
                         entry_point: Some("main"),
                         compilation_options: wgpu::PipelineCompilationOptions {
                             constants: &constants,
@@ -94,15 +122,8 @@ impl RayBatch {
                         },
                         cache: None,
                     })
-            };
-            let (pipeline, csg_pipeline) = (make(false), make(true));
-            RayBatch {
-                pipeline,
-                csg_pipeline,
-                layout,
-                driver,
-            }
-        })
+            })
+            .clone()
     }
 
     /// Traces `rays` against `scene`; returns one hit per ray (timed:
@@ -197,6 +218,7 @@ impl RayBatch {
             layout: &self.layout,
             entries: &entries,
         });
+        let pipeline = self.pipeline_for(gpu, scene);
         let dispatch = || {
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             {
@@ -204,11 +226,7 @@ impl RayBatch {
                     label: Some("ray batch pass"),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(if scene.accel.csg_ops.is_empty() {
-                    &self.pipeline
-                } else {
-                    &self.csg_pipeline
-                });
+                pass.set_pipeline(&pipeline);
                 pass.set_bind_group(SCENE_GROUP, &scene.bind_group, &[]);
                 pass.set_bind_group(PASS_GROUP, &group, &[]);
                 if let Some(driver) = &driver_group {

@@ -13,11 +13,14 @@ use glam::Mat4;
 use wgpu::util::DeviceExt;
 
 use crate::accel::{shadow_cull, SceneAccel};
-use crate::gpu::layout::{buffer_entries, map_array_entry, read_only_storage_entry, sampler_entry};
+use crate::gpu::layout::{
+    buffer_entries, map_array_entry, read_only_storage_entry, sampler_entry, uniform_entry,
+};
 use crate::gpu::twins::{
     GpuInstance, GpuLight, GpuMaterial, Vertex, LIGHTS_DYNAMIC, MAX_TOON_BANDS, NO_TEXTURE,
     SHADING_BLINN_PHONG, SHADING_TOON,
 };
+use crate::gpu::uniform_tables::{Table, UniformTables, UNIFORM_TABLE_BYTES};
 use crate::gpu::{Gpu, GpuError};
 use crate::render::textures::{scene_uses_textures, SceneTextures};
 use crate::scene::{
@@ -37,7 +40,7 @@ const SCENE_VISIBILITY: wgpu::ShaderStages =
 
 /// The scene's bind group layout, binding by binding as
 /// `shaders/lib/scene_bindings.wgsl` declares it.
-pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 13] = [
+pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 20] = [
     read_only_storage_entry(0, SCENE_VISIBILITY), // instances
     read_only_storage_entry(1, SCENE_VISIBILITY), // materials
     read_only_storage_entry(2, SCENE_VISIBILITY), // lights
@@ -51,6 +54,14 @@ pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 13] = [
     map_array_entry(10, SCENE_VISIBILITY),        // base_color_maps
     sampler_entry(11, SCENE_VISIBILITY),          // map_linear
     sampler_entry(12, SCENE_VISIBILITY),          // map_nearest
+    // The uniform copies (gpu::uniform_tables), in Table::ALL's order.
+    uniform_entry(13, SCENE_VISIBILITY), // nodes_u
+    uniform_entry(14, SCENE_VISIBILITY), // instances_u
+    uniform_entry(15, SCENE_VISIBILITY), // shapes_u
+    uniform_entry(16, SCENE_VISIBILITY), // tlas_items_u
+    uniform_entry(17, SCENE_VISIBILITY), // materials_u
+    uniform_entry(18, SCENE_VISIBILITY), // csg_ops_u
+    uniform_entry(19, SCENE_VISIBILITY), // csg_leaves_u
 ];
 
 /// The scene's bind group layout object. wgpu pools layouts by their
@@ -137,6 +148,12 @@ pub struct SceneBuffers {
     /// rewritten when lights are edited.
     pub shadow_cull: wgpu::Buffer,
     pub shadow_cells: wgpu::Buffer,
+    /// Which tables the passes read from their uniform copies
+    /// ([`crate::gpu::uniform_tables`]): part of every pipeline's key.
+    pub tables: UniformTables,
+    /// The uniform copies, in [`Table::ALL`]'s order; a table that does not
+    /// fit binds a zero-filled buffer of the same size that nothing reads.
+    uniform_copies: Vec<wgpu::Buffer>,
     /// Whether any material has an image or a pattern, or any mesh its
     /// own map: passes compile
     /// their texture code in only then (override `TEXTURES_ENABLED`).
@@ -386,7 +403,40 @@ fn storage_buffer<T: bytemuck::Pod>(gpu: &Gpu, label: &str, data: &[T]) -> wgpu:
         })
 }
 
+/// A uniform copy of a table's `bytes`, zero-padded to the size WGSL
+/// declares.
+fn uniform_copy(gpu: &Gpu, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    let mut contents = bytes.to_vec();
+    contents.resize(UNIFORM_TABLE_BYTES as usize, 0);
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: &contents,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        })
+}
+
 impl SceneBuffers {
+    /// Rewrites `table`'s storage buffer `storage` from its start, and its
+    /// uniform copy where the passes read that.
+    fn write_table(&self, gpu: &Gpu, table: Table, storage: &wgpu::Buffer, bytes: &[u8]) {
+        gpu.queue.write_buffer(storage, 0, bytes);
+        if self.tables.contains(table) {
+            gpu.queue
+                .write_buffer(&self.uniform_copies[table as usize], 0, bytes);
+        }
+    }
+
+    /// Rewrites the materials (as many as at upload).
+    pub fn write_materials(&self, gpu: &Gpu, materials: &[GpuMaterial]) {
+        self.write_table(
+            gpu,
+            Table::Materials,
+            &self.materials,
+            bytemuck::cast_slice(materials),
+        );
+    }
+
     /// Rewrites every instance's matrices at shutter fraction `s` (for
     /// motion blur; the top-level BVH already bounds the whole motion).
     pub fn write_instances_at(&self, gpu: &Gpu, scene: &Scene, s: f32) {
@@ -399,8 +449,12 @@ impl SceneBuffers {
             })
             .collect();
         if !data.is_empty() {
-            gpu.queue
-                .write_buffer(&self.instances, 0, bytemuck::cast_slice(&data));
+            self.write_table(
+                gpu,
+                Table::Instances,
+                &self.instances,
+                bytemuck::cast_slice(&data),
+            );
         }
     }
 
@@ -618,7 +672,37 @@ impl SceneBuffers {
             check_limit(what, bytes as u64, binding_limit)?;
         }
 
+        let table_bytes = |table: Table| -> &[u8] {
+            match table {
+                Table::Nodes => bytemuck::cast_slice(&accel.nodes),
+                Table::Instances => bytemuck::cast_slice(&gpu_instances),
+                Table::Shapes => bytemuck::cast_slice(&shapes),
+                Table::TlasItems => bytemuck::cast_slice(&tlas_items),
+                Table::Materials => bytemuck::cast_slice(&materials),
+                Table::CsgOps => bytemuck::cast_slice(&csg_ops),
+                Table::CsgLeaves => bytemuck::cast_slice(&csg_leaves),
+            }
+        };
+        let tables = match gpu.uniform_tables() {
+            true => UniformTables::fitting(|t| table_bytes(t).len()),
+            false => UniformTables::NONE,
+        };
+        // The contents of the uniform copies (64 KiB at most each).
+        let copies: Vec<Option<Vec<u8>>> = Table::ALL
+            .into_iter()
+            .map(|t| tables.contains(t).then(|| table_bytes(t).to_vec()))
+            .collect();
+
         gpu.scoped(|| {
+            let unused = uniform_copy(gpu, "scene table not read (uniform copy)", &[]);
+            let uniform_copies: Vec<wgpu::Buffer> = Table::ALL
+                .into_iter()
+                .zip(&copies)
+                .map(|(t, bytes)| match bytes {
+                    Some(bytes) => uniform_copy(gpu, &format!("scene {t:?} (uniform copy)"), bytes),
+                    None => unused.clone(),
+                })
+                .collect();
             let instances = storage_buffer(gpu, "scene instances", &gpu_instances);
             let materials = storage_buffer(gpu, "scene materials", &materials);
             let lights = storage_buffer(gpu, "scene lights", &lights);
@@ -645,6 +729,10 @@ impl SceneBuffers {
                 &triangle_maps,
             ]);
             entries.extend(textures.bind_group_entries(10));
+            entries.extend(Table::ALL.into_iter().map(|t| wgpu::BindGroupEntry {
+                binding: t.binding(),
+                resource: uniform_copies[t as usize].as_entire_binding(),
+            }));
             let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("scene bind group"),
                 layout: &scene_layout(gpu),
@@ -666,6 +754,8 @@ impl SceneBuffers {
                 triangle_maps,
                 shadow_cull,
                 shadow_cells,
+                tables,
+                uniform_copies,
                 accel,
                 vertices: gpu
                     .device

@@ -19,6 +19,7 @@ use crate::gpu::layout::{
 };
 use crate::gpu::shader::Traversal;
 use crate::gpu::twins::{SHAPE_MESH, TRACE_WORKGROUP};
+use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
 use crate::render::scene_buffers::{
@@ -100,6 +101,8 @@ pub struct Variant {
     /// The lights' count and kinds, when fixed: the shading loop over the
     /// lights unrolls.
     lights: LightLayout,
+    /// The tables read from their uniform copies.
+    tables: UniformTables,
 }
 
 impl Variant {
@@ -128,6 +131,7 @@ impl Variant {
             analytic_kinds: analytic_kinds(buffers),
             shading: ShadingVariant::of(&scene.materials, &scene.lights),
             lights: LightLayout::of(&scene.lights),
+            tables: buffers.tables,
         }
     }
 
@@ -150,6 +154,7 @@ impl Variant {
         ];
         constants.extend(self.shading.constants());
         constants.extend(self.lights.constants());
+        constants.push(self.tables.constant());
         constants
     }
 }

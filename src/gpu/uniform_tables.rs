@@ -1,0 +1,146 @@
+//! The scene tables that passes may read from a uniform-buffer copy.
+//!
+//! lavapipe reads a storage-buffer word whose index differs between the 8
+//! lanes of its SIMD program in a loop over the lanes, two branches a word
+//! (the lane's mask, the buffer's bounds); a uniform-buffer read at the same
+//! indices is one branchless gather (docs/performance.md, fourteenth
+//! session). So each table of the scene's group that fits in
+//! [`UNIFORM_TABLE_BYTES`] is also uploaded as a uniform buffer, and the
+//! pipelines read it there: bit [`Table::bit`] of the override constant
+//! `UNIFORM_TABLES` (lib/scene_bindings.wgsl) says so, and the shaders'
+//! accessors (`load_node`, `load_instance`, ...) pick the binding. A table
+//! too big (a large mesh's BVH, 100,000 instances) is read from storage.
+//!
+//! The storage buffers stay the tables' home (the CPU writes both copies,
+//! [`crate::render::scene_buffers::SceneBuffers::write_table`]); the
+//! uniform copies are always [`UNIFORM_TABLE_BYTES`] long, as WGSL
+//! declares them (fixed-size arrays).
+
+use crate::gpu::twins::{BvhNode, GpuCsgLeaf, GpuCsgOp, GpuInstance, GpuMaterial, GpuShape};
+
+/// Bytes of each uniform copy: WebGPU's default (and lavapipe's) limit on a
+/// uniform binding. [`crate::gpu::Gpu`] refuses an adapter with less.
+pub const UNIFORM_TABLE_BYTES: u32 = 65536;
+
+/// The first binding of the uniform copies in the scene's group; table `t`
+/// is at `FIRST_UNIFORM_TABLE_BINDING + t as u32`.
+pub const FIRST_UNIFORM_TABLE_BINDING: u32 = 13;
+
+/// A table of the scene's group with a uniform copy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Table {
+    Nodes,
+    Instances,
+    Shapes,
+    TlasItems,
+    Materials,
+    CsgOps,
+    CsgLeaves,
+}
+
+impl Table {
+    pub const ALL: [Table; 7] = [
+        Table::Nodes,
+        Table::Instances,
+        Table::Shapes,
+        Table::TlasItems,
+        Table::Materials,
+        Table::CsgOps,
+        Table::CsgLeaves,
+    ];
+
+    /// Its bit in `UNIFORM_TABLES`.
+    pub const fn bit(self) -> u32 {
+        1 << self as u32
+    }
+
+    pub const fn binding(self) -> u32 {
+        FIRST_UNIFORM_TABLE_BINDING + self as u32
+    }
+
+    /// The WGSL name of its bit (generated into lib/limits.wgsl).
+    pub const fn bit_name(self) -> &'static str {
+        match self {
+            Table::Nodes => "TABLE_NODES",
+            Table::Instances => "TABLE_INSTANCES",
+            Table::Shapes => "TABLE_SHAPES",
+            Table::TlasItems => "TABLE_TLAS_ITEMS",
+            Table::Materials => "TABLE_MATERIALS",
+            Table::CsgOps => "TABLE_CSG_OPS",
+            Table::CsgLeaves => "TABLE_CSG_LEAVES",
+        }
+    }
+
+    /// The WGSL name of its uniform array's length (lib/limits.wgsl).
+    pub const fn length_name(self) -> &'static str {
+        match self {
+            Table::Nodes => "UNIFORM_NODES",
+            Table::Instances => "UNIFORM_INSTANCES",
+            Table::Shapes => "UNIFORM_SHAPES",
+            Table::TlasItems => "UNIFORM_TLAS_ITEM_VECS",
+            Table::Materials => "UNIFORM_MATERIALS",
+            Table::CsgOps => "UNIFORM_CSG_OP_VECS",
+            Table::CsgLeaves => "UNIFORM_CSG_LEAVES",
+        }
+    }
+
+    /// Bytes of one element of its uniform array. A uniform array's stride
+    /// is a multiple of 16, so the 4-byte top-level items and the 8-byte
+    /// CSG instructions are packed four and two to a `vec4<u32>`, which is
+    /// the storage buffer's own byte layout.
+    const fn uniform_stride(self) -> u32 {
+        (match self {
+            Table::Nodes => std::mem::size_of::<BvhNode>(),
+            Table::Instances => std::mem::size_of::<GpuInstance>(),
+            Table::Shapes => std::mem::size_of::<GpuShape>(),
+            Table::TlasItems | Table::CsgOps => 16,
+            Table::Materials => std::mem::size_of::<GpuMaterial>(),
+            Table::CsgLeaves => std::mem::size_of::<GpuCsgLeaf>(),
+        }) as u32
+    }
+
+    /// Elements of its uniform array: as many whole ones as fit.
+    pub const fn uniform_length(self) -> u32 {
+        UNIFORM_TABLE_BYTES / self.uniform_stride()
+    }
+
+    /// Whether a table of `bytes` (its storage buffer's contents) fits its
+    /// uniform copy.
+    pub const fn fits(self, bytes: usize) -> bool {
+        bytes as u64 <= (self.uniform_length() * self.uniform_stride()) as u64
+    }
+}
+
+// Two CSG instructions to a `vec4<u32>` (load_csg_op) needs 8 bytes each.
+const _: () = assert!(std::mem::size_of::<GpuCsgOp>() == 8);
+
+/// Which tables a scene's pipelines read from their uniform copies: the
+/// value of `UNIFORM_TABLES`, part of every pipeline key that reads the
+/// scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct UniformTables(u32);
+
+impl UniformTables {
+    /// Every table from storage (what a pipeline that does not set the
+    /// constant reads).
+    pub const NONE: UniformTables = UniformTables(0);
+
+    /// The tables whose contents (bytes, by table) fit.
+    pub fn fitting(bytes: impl Fn(Table) -> usize) -> UniformTables {
+        UniformTables(
+            Table::ALL
+                .into_iter()
+                .filter(|&t| t.fits(bytes(t)))
+                .fold(0, |bits, t| bits | t.bit()),
+        )
+    }
+
+    pub fn contains(self, table: Table) -> bool {
+        self.0 & table.bit() != 0
+    }
+
+    /// The override constant that selects these tables.
+    pub fn constant(self) -> (&'static str, f64) {
+        ("UNIFORM_TABLES", f64::from(self.0))
+    }
+}
