@@ -35,6 +35,11 @@ for line in dis.splitlines():
     rows.append((count, line))
     if len(parts) >= 3 and parts[2].split():
         mix[parts[2].split()[0]] += count
+matched = sum(c for c, _ in rows)
+print(f"{matched} of them at instruction starts of the copied code")
+if matched < 0.9 * inside(best):
+    print("warning: the code at those addresses changed during the recording "
+          "(a case ended?): choose --after and --for inside one case")
 with open(f"{out}/annotated.txt", "w") as f:
     f.writelines(f"{c:6d} {l}\n" for c, l in rows)
 with open(f"{out}/hot.txt", "w") as f:

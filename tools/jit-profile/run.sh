@@ -32,8 +32,13 @@ rm -rf "$out" && mkdir -p "$out"
 pid=$!
 sleep "$after"
 kill -0 "$pid" 2>/dev/null || { echo "the command ended before --after $after s" >&2; exit 1; }
-perf record -F 2000 -p "$pid" -o "$out/perf.data" -- sleep "$duration" 2> "$out/perf.log"
+perf record -F 2000 -p "$pid" -o "$out/perf.data" -- sleep "$duration" 2> "$out/perf.log" &
+perf_pid=$!
+# The code is copied halfway through the recording: a case that ends
+# frees its kernel, and the next one may be compiled at the same address.
+sleep "$(python3 -c "print($duration / 2)")"
 python3 tools/jit-profile/dump.py "$pid" "$out"
+wait "$perf_pid"
 wait "$pid" || true
 perf script -i "$out/perf.data" -F ip 2>/dev/null > "$out/ips.txt"
 python3 tools/jit-profile/annotate.py "$out"
