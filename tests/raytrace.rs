@@ -818,7 +818,8 @@ fn an_empty_scene_shows_only_its_background() {
 /// exactly what the storage buffers draw: the same image byte for byte, in
 /// raster, hybrid and raytrace mode, on a scene whose every table has a copy
 /// (csg_textbook: CSG programs and leaves), one whose mesh BVH is too big
-/// for one (the default scene), and one whose instances are rewritten every
+/// for one, so that only the top-level tree's nodes are copied (the default
+/// scene), and one whose instances are rewritten every
 /// sample (anchor_dof_motion, motion blur); then again after a material
 /// edit, written in place into both copies (the edit must change the
 /// image, or the second check would prove nothing). Any wrong offset in a
@@ -829,18 +830,21 @@ fn uniform_table_copies_draw_what_the_storage_buffers_draw() {
     use celray::gpu::uniform_tables::Table;
     let gpu = gpu();
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    // (scene, the tables copied whole, whether the top-level tree's nodes
+    // alone are copied)
     let cases = [
-        ("csg_textbook.ron", Table::ALL.to_vec()),
+        ("csg_textbook.ron", Table::ALL.to_vec(), false),
         (
             "default.ron",
             Table::ALL
                 .into_iter()
                 .filter(|&t| t != Table::Nodes)
                 .collect(),
+            true,
         ),
-        ("anchor_dof_motion.ron", Table::ALL.to_vec()),
+        ("anchor_dof_motion.ron", Table::ALL.to_vec(), false),
     ];
-    for (file, uniform) in cases {
+    for (file, uniform, top_nodes) in cases {
         let scene = Scene::load(&dir.join(file)).unwrap();
         for mode in [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace] {
             let settings = RenderSettings {
@@ -874,6 +878,15 @@ fn uniform_table_copies_draw_what_the_storage_buffers_draw() {
                 );
                 assert!(!none.contains(t), "{file}: storage only, yet {t:?} copied");
             }
+            assert_eq!(
+                tables.top_nodes_only(),
+                top_nodes,
+                "{file}: top-level nodes"
+            );
+            assert!(
+                !none.top_nodes_only(),
+                "{file}: storage only, yet nodes copied"
+            );
             assert!(
                 copies == storage,
                 "{file} {mode:?}: the copies draw another image"

@@ -130,7 +130,7 @@ fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f
     let inv_d = 1.0 / d;
     // `trace_stack` above `base`, where the caller's entries end, as intersect_mesh does.
     var sp = base;
-    var current = select(NO_HIT, leaf.blas_root, box_entry(leaf.blas_root, o, inv_d, -CSG_FAR, CSG_FAR) < 3.0e38);
+    var current = select(NO_HIT, leaf.blas_root, box_entry(leaf.blas_root, o, inv_d, -CSG_FAR, CSG_FAR, false) < 3.0e38);
     loop {
         if current == NO_HIT {
             if sp == base {
@@ -144,7 +144,7 @@ fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f
         }
         let node = load_node(current);
         if node.count == 0u {
-            current = descend(node, o, inv_d, -CSG_FAR, CSG_FAR, &sp);
+            current = descend(node, o, inv_d, -CSG_FAR, CSG_FAR, &sp, false);
             continue;
         }
         current = NO_HIT;

@@ -47,11 +47,20 @@ fn uniform_table(table: u32) -> bool {
     return (UNIFORM_TABLES & table) != 0u;
 }
 
-fn load_node(i: u32) -> BvhNode {
-    if uniform_table(TABLE_NODES) {
+// Node i of the top-level tree (`top`) or of a mesh's (a literal at every
+// call, so only one branch stays in the pipeline). The top-level tree's
+// nodes come first, so its copy may hold them where the whole table does
+// not fit (TABLE_TOP_NODES).
+fn load_tree_node(i: u32, top: bool) -> BvhNode {
+    if uniform_table(TABLE_NODES) || (top && uniform_table(TABLE_TOP_NODES)) {
         return nodes_u[i];
     }
     return nodes[i];
+}
+
+// Node i of a mesh's tree.
+fn load_node(i: u32) -> BvhNode {
+    return load_tree_node(i, false);
 }
 
 fn load_instance(i: u32) -> GpuInstance {

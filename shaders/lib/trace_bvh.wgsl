@@ -12,7 +12,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     var object_geometric = vec3<f32>(0.0);
     let inv_d = 1.0 / d;
     var sp = 0u;
-    var current = select(NO_HIT, 0u, box_entry(0u, o, inv_d, t_min, t_max) < 3.0e38);
+    var current = select(NO_HIT, 0u, box_entry(0u, o, inv_d, t_min, t_max, true) < 3.0e38);
     loop {
         if current == NO_HIT {
             if sp == 0u {
@@ -24,9 +24,9 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
         if !take_step() {
             break;
         }
-        let node = load_node(current);
+        let node = load_tree_node(current, true);
         if node.count == 0u {
-            current = descend(node, o, inv_d, t_min, best.t, &sp);
+            current = descend(node, o, inv_d, t_min, best.t, &sp, true);
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {

@@ -58,19 +58,22 @@ fn node_span(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f
     return vec2<f32>(near, far);
 }
 
-fn box_entry(i: u32, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
-    let s = node_span(load_node(i), o, inv_d, t_min, t_max);
+// The entry t of node i's box, or 3.0e38 on a miss; `top`: node i is the
+// top-level tree's (lib/scene_bindings.wgsl, load_tree_node).
+fn box_entry(i: u32, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32, top: bool) -> f32 {
+    let s = node_span(load_tree_node(i, top), o, inv_d, t_min, t_max);
     return select(3.0e38, s.x, s.x <= s.y);
 }
 
 // One step of descent from inner node `node`: tests both children's boxes
 // here (so a popped node needs no second test), continues into the nearer
 // child that is hit and pushes the farther one. Returns the next node, or
-// NO_HIT when neither child is hit (the caller pops).
-fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32, sp: ptr<function, u32>) -> u32 {
+// NO_HIT when neither child is hit (the caller pops). `top`: the walk is
+// the top-level tree's.
+fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32, sp: ptr<function, u32>, top: bool) -> u32 {
     let left = node.left_or_first;
-    let t_left = box_entry(left, o, inv_d, t_min, t_max);
-    let t_right = box_entry(left + 1u, o, inv_d, t_min, t_max);
+    let t_left = box_entry(left, o, inv_d, t_min, t_max, top);
+    let t_right = box_entry(left + 1u, o, inv_d, t_min, t_max, top);
     let hit_left = t_left < 3.0e38;
     let hit_right = t_right < 3.0e38;
     if hit_left && hit_right {
@@ -100,7 +103,7 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
     var best_tuv = vec3<f32>(0.0);
     var t_best = t_max;
     var sp = base;
-    var current = select(NO_HIT, root, box_entry(root, o, inv_d, t_min, t_max) < 3.0e38);
+    var current = select(NO_HIT, root, box_entry(root, o, inv_d, t_min, t_max, false) < 3.0e38);
     loop {
         if current == NO_HIT {
             if sp == base {
@@ -114,7 +117,7 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
         }
         let node = load_node(current);
         if node.count == 0u {
-            current = descend(node, o, inv_d, t_min, t_best, &sp);
+            current = descend(node, o, inv_d, t_min, t_best, &sp, false);
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {

@@ -47,6 +47,8 @@ pub struct SceneAccel {
     pub shapes: Vec<GpuShape>,
     /// Top level at 0 (root 0), then every mesh's bottom level.
     pub nodes: Vec<BvhNode>,
+    /// How many of `nodes` are the top level's.
+    pub top_nodes: usize,
     pub triangles: Vec<GpuTriangle>,
     /// Top-level leaf slots -> GPU instance index.
     pub tlas_items: Vec<u32>,
@@ -261,6 +263,7 @@ impl SceneAccel {
             }
         }
         let blas_nodes = nodes.split_off(1);
+        let top_nodes = tlas.nodes.len();
         let mut all = tlas.nodes;
         all.extend(blas_nodes);
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -275,6 +278,7 @@ impl SceneAccel {
         Ok(SceneAccel {
             shapes,
             nodes: all,
+            top_nodes,
             triangles,
             tlas_items: tlas.items,
             instances,

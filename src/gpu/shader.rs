@@ -10,7 +10,7 @@
 use std::sync::OnceLock;
 
 use crate::gpu::twins;
-use crate::gpu::uniform_tables::Table;
+use crate::gpu::uniform_tables::{Table, TOP_NODES_BIT, TOP_NODES_NAME};
 use crate::gpu::GpuError;
 
 /// The include [`compose`] generates from Rust constants rather than reads
@@ -62,6 +62,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
         limits.push((table.bit_name(), table.bit()));
         limits.push((table.length_name(), table.uniform_length()));
     }
+    limits.push((TOP_NODES_NAME, TOP_NODES_BIT));
     limits
 }
 

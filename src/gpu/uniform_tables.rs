@@ -114,6 +114,13 @@ impl Table {
 // Two CSG instructions to a `vec4<u32>` (load_csg_op) needs 8 bytes each.
 const _: () = assert!(std::mem::size_of::<GpuCsgOp>() == 8);
 
+/// The bit of `UNIFORM_TABLES` that says the node table did not fit but
+/// its first nodes, the top-level tree's, did: the copy holds those, and the
+/// top-level walk reads it (the meshes' walks read storage).
+pub const TOP_NODES_BIT: u32 = 1 << 7;
+/// Its WGSL name (lib/limits.wgsl).
+pub const TOP_NODES_NAME: &str = "TABLE_TOP_NODES";
+
 /// Which tables a scene's pipelines read from their uniform copies: the
 /// value of `UNIFORM_TABLES`, part of every pipeline key that reads the
 /// scene.
@@ -125,18 +132,26 @@ impl UniformTables {
     /// constant reads).
     pub const NONE: UniformTables = UniformTables(0);
 
-    /// The tables whose contents (bytes, by table) fit.
-    pub fn fitting(bytes: impl Fn(Table) -> usize) -> UniformTables {
-        UniformTables(
-            Table::ALL
-                .into_iter()
-                .filter(|&t| t.fits(bytes(t)))
-                .fold(0, |bits, t| bits | t.bit()),
-        )
+    /// The tables whose contents (bytes, by table) fit; where the nodes do
+    /// not, whether the top-level tree's (`top_node_bytes`, the first ones)
+    /// do.
+    pub fn fitting(bytes: impl Fn(Table) -> usize, top_node_bytes: usize) -> UniformTables {
+        let whole = Table::ALL
+            .into_iter()
+            .filter(|&t| t.fits(bytes(t)))
+            .fold(0, |bits, t| bits | t.bit());
+        let top = whole & Table::Nodes.bit() == 0 && Table::Nodes.fits(top_node_bytes);
+        UniformTables(whole | if top { TOP_NODES_BIT } else { 0 })
     }
 
+    /// Whether `table` is read from its uniform copy, all of it.
     pub fn contains(self, table: Table) -> bool {
         self.0 & table.bit() != 0
+    }
+
+    /// Whether the node table's copy holds only the top-level tree.
+    pub fn top_nodes_only(self) -> bool {
+        self.0 & TOP_NODES_BIT != 0
     }
 
     /// The override constant that selects these tables.

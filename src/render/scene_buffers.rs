@@ -684,13 +684,22 @@ impl SceneBuffers {
             }
         };
         let tables = match gpu.uniform_tables() {
-            true => UniformTables::fitting(|t| table_bytes(t).len()),
+            true => UniformTables::fitting(
+                |t| table_bytes(t).len(),
+                accel.top_nodes * std::mem::size_of::<crate::gpu::twins::BvhNode>(),
+            ),
             false => UniformTables::NONE,
         };
-        // The contents of the uniform copies (64 KiB at most each).
+        // The contents of the uniform copies (64 KiB at most each): whole
+        // tables, or the top-level tree's nodes (the first ones).
         let copies: Vec<Option<Vec<u8>>> = Table::ALL
             .into_iter()
-            .map(|t| tables.contains(t).then(|| table_bytes(t).to_vec()))
+            .map(|t| {
+                let top = t == Table::Nodes && tables.top_nodes_only();
+                let bytes = table_bytes(t);
+                (tables.contains(t) || top)
+                    .then(|| bytes[..bytes.len().min(UNIFORM_TABLE_BYTES as usize)].to_vec())
+            })
             .collect();
 
         gpu.scoped(|| {
