@@ -823,7 +823,7 @@ fn an_empty_scene_shows_only_its_background() {
 /// sample (anchor_dof_motion, motion blur); then again after a material
 /// edit, written in place into both copies (the edit must change the
 /// image, or the second check would prove nothing). Any wrong offset in a
-/// copy's packing (four top-level items or two CSG instructions to a
+/// copy's packing (two CSG instructions to a
 /// vec4) or a copy left stale moves some pixel.
 #[test]
 fn uniform_table_copies_draw_what_the_storage_buffers_draw() {

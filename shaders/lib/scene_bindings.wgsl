@@ -31,17 +31,19 @@
 // branchless gather, a storage read a loop over the 8 lanes with two
 // branches a word. Bit TABLE_* of UNIFORM_TABLES (set per pipeline, from
 // which tables of the scene fit) says which copy the accessors below read;
-// the other one's code is not in the pipeline. The top-level items and
-// the CSG instructions are packed four and two to a vec4 (a uniform
-// array's stride is a multiple of 16 bytes): the storage layout.
+// the other one's code is not in the pipeline. The CSG instructions are
+// packed two to a vec4 (a uniform array's stride is a multiple of 16
+// bytes): the storage layout. Six copies at most: Mesa 22.3's lavapipe
+// corrupts its heap with 8 uniform buffers in one stage (it reports 15),
+// and a pass adds its own (frame uniforms). The top-level items have none:
+// unpacking a word from a vec4 cost more than the copy saved (0.97x).
 override UNIFORM_TABLES: u32 = 0u;
 @group(0) @binding(13) var<uniform> nodes_u: array<BvhNode, UNIFORM_NODES>;
 @group(0) @binding(14) var<uniform> instances_u: array<GpuInstance, UNIFORM_INSTANCES>;
 @group(0) @binding(15) var<uniform> shapes_u: array<GpuShape, UNIFORM_SHAPES>;
-@group(0) @binding(16) var<uniform> tlas_items_u: array<vec4<u32>, UNIFORM_TLAS_ITEM_VECS>;
-@group(0) @binding(17) var<uniform> materials_u: array<GpuMaterial, UNIFORM_MATERIALS>;
-@group(0) @binding(18) var<uniform> csg_ops_u: array<vec4<u32>, UNIFORM_CSG_OP_VECS>;
-@group(0) @binding(19) var<uniform> csg_leaves_u: array<GpuCsgLeaf, UNIFORM_CSG_LEAVES>;
+@group(0) @binding(16) var<uniform> materials_u: array<GpuMaterial, UNIFORM_MATERIALS>;
+@group(0) @binding(17) var<uniform> csg_ops_u: array<vec4<u32>, UNIFORM_CSG_OP_VECS>;
+@group(0) @binding(18) var<uniform> csg_leaves_u: array<GpuCsgLeaf, UNIFORM_CSG_LEAVES>;
 
 fn uniform_table(table: u32) -> bool {
     return (UNIFORM_TABLES & table) != 0u;
@@ -75,13 +77,6 @@ fn load_shape(i: u32) -> GpuShape {
         return shapes_u[i];
     }
     return shapes[i];
-}
-
-fn load_tlas_item(k: u32) -> u32 {
-    if uniform_table(TABLE_TLAS_ITEMS) {
-        return tlas_items_u[k / 4u][k % 4u];
-    }
-    return tlas_items[k];
 }
 
 fn load_material(i: u32) -> GpuMaterial {

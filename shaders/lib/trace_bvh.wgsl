@@ -30,7 +30,7 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
-            let inst = load_tlas_item(k);
+            let inst = tlas_items[k];
             let shape = load_instance(inst).shape;
             if skip_meshes && load_shape(shape).kind == SHAPE_MESH {
                 continue;

@@ -11,6 +11,12 @@
 //! accessors (`load_node`, `load_instance`, ...) pick the binding. A table
 //! too big (a large mesh's BVH, 100,000 instances) is read from storage.
 //!
+//! Six tables at most: Mesa 22.3's lavapipe corrupts its heap with 8
+//! uniform buffers in one stage, and every pass binds its frame uniforms
+//! too (tests/shaders.rs checks the count). The top-level items
+//! (`tlas_items`) have no copy: one word read from a `vec4` at a per-lane
+//! component cost more than the copy saved (0.97x the trace pass without it).
+//!
 //! The storage buffers stay the tables' home (the CPU writes both copies,
 //! [`crate::render::scene_buffers::SceneBuffers::write_table`]); the
 //! uniform copies are always [`UNIFORM_TABLE_BYTES`] long, as WGSL
@@ -32,18 +38,16 @@ pub enum Table {
     Nodes,
     Instances,
     Shapes,
-    TlasItems,
     Materials,
     CsgOps,
     CsgLeaves,
 }
 
 impl Table {
-    pub const ALL: [Table; 7] = [
+    pub const ALL: [Table; 6] = [
         Table::Nodes,
         Table::Instances,
         Table::Shapes,
-        Table::TlasItems,
         Table::Materials,
         Table::CsgOps,
         Table::CsgLeaves,
@@ -64,7 +68,6 @@ impl Table {
             Table::Nodes => "TABLE_NODES",
             Table::Instances => "TABLE_INSTANCES",
             Table::Shapes => "TABLE_SHAPES",
-            Table::TlasItems => "TABLE_TLAS_ITEMS",
             Table::Materials => "TABLE_MATERIALS",
             Table::CsgOps => "TABLE_CSG_OPS",
             Table::CsgLeaves => "TABLE_CSG_LEAVES",
@@ -77,7 +80,6 @@ impl Table {
             Table::Nodes => "UNIFORM_NODES",
             Table::Instances => "UNIFORM_INSTANCES",
             Table::Shapes => "UNIFORM_SHAPES",
-            Table::TlasItems => "UNIFORM_TLAS_ITEM_VECS",
             Table::Materials => "UNIFORM_MATERIALS",
             Table::CsgOps => "UNIFORM_CSG_OP_VECS",
             Table::CsgLeaves => "UNIFORM_CSG_LEAVES",
@@ -85,15 +87,14 @@ impl Table {
     }
 
     /// Bytes of one element of its uniform array. A uniform array's stride
-    /// is a multiple of 16, so the 4-byte top-level items and the 8-byte
-    /// CSG instructions are packed four and two to a `vec4<u32>`, which is
-    /// the storage buffer's own byte layout.
+    /// is a multiple of 16, so the 8-byte CSG instructions are packed two
+    /// to a `vec4<u32>`, which is the storage buffer's own byte layout.
     const fn uniform_stride(self) -> u32 {
         (match self {
             Table::Nodes => std::mem::size_of::<BvhNode>(),
             Table::Instances => std::mem::size_of::<GpuInstance>(),
             Table::Shapes => std::mem::size_of::<GpuShape>(),
-            Table::TlasItems | Table::CsgOps => 16,
+            Table::CsgOps => 16,
             Table::Materials => std::mem::size_of::<GpuMaterial>(),
             Table::CsgLeaves => std::mem::size_of::<GpuCsgLeaf>(),
         }) as u32

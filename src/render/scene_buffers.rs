@@ -40,7 +40,7 @@ const SCENE_VISIBILITY: wgpu::ShaderStages =
 
 /// The scene's bind group layout, binding by binding as
 /// `shaders/lib/scene_bindings.wgsl` declares it.
-pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 20] = [
+pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 19] = [
     read_only_storage_entry(0, SCENE_VISIBILITY), // instances
     read_only_storage_entry(1, SCENE_VISIBILITY), // materials
     read_only_storage_entry(2, SCENE_VISIBILITY), // lights
@@ -58,10 +58,9 @@ pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 20] = [
     uniform_entry(13, SCENE_VISIBILITY), // nodes_u
     uniform_entry(14, SCENE_VISIBILITY), // instances_u
     uniform_entry(15, SCENE_VISIBILITY), // shapes_u
-    uniform_entry(16, SCENE_VISIBILITY), // tlas_items_u
-    uniform_entry(17, SCENE_VISIBILITY), // materials_u
-    uniform_entry(18, SCENE_VISIBILITY), // csg_ops_u
-    uniform_entry(19, SCENE_VISIBILITY), // csg_leaves_u
+    uniform_entry(16, SCENE_VISIBILITY), // materials_u
+    uniform_entry(17, SCENE_VISIBILITY), // csg_ops_u
+    uniform_entry(18, SCENE_VISIBILITY), // csg_leaves_u
 ];
 
 /// The scene's bind group layout object. wgpu pools layouts by their
@@ -677,7 +676,6 @@ impl SceneBuffers {
                 Table::Nodes => bytemuck::cast_slice(&accel.nodes),
                 Table::Instances => bytemuck::cast_slice(&gpu_instances),
                 Table::Shapes => bytemuck::cast_slice(&shapes),
-                Table::TlasItems => bytemuck::cast_slice(&tlas_items),
                 Table::Materials => bytemuck::cast_slice(&materials),
                 Table::CsgOps => bytemuck::cast_slice(&csg_ops),
                 Table::CsgLeaves => bytemuck::cast_slice(&csg_leaves),
