@@ -14,13 +14,15 @@
 //! Six tables at most: Mesa 22.3's lavapipe corrupts its heap with 8
 //! uniform buffers in one stage, and every pass binds its frame uniforms
 //! too (tests/shaders.rs checks the count). The top-level items
-//! (`tlas_items`) have no copy: one word read from a `vec4` at a per-lane
-//! component cost more than the copy saved (0.97x the trace pass without it).
+//! (`tlas_items`) have no copy: reading one word of a `vec4` at a per-lane
+//! component cost more than the copy saved (the trace pass measured 0.97x
+//! without that copy).
 //!
-//! The storage buffers stay the tables' home (the CPU writes both copies,
-//! [`crate::render::scene_buffers::SceneBuffers::write_table`]); the
-//! uniform copies are always [`UNIFORM_TABLE_BYTES`] long, as WGSL
-//! declares them (fixed-size arrays).
+//! The storage buffers stay the tables' home (edits write both copies:
+//! `SceneBuffers::write_materials` and `write_instances_at` in
+//! render/scene_buffers.rs); the uniform copies are always
+//! [`UNIFORM_TABLE_BYTES`] long, as WGSL declares them (fixed-size
+//! arrays).
 
 use crate::gpu::twins::{BvhNode, GpuCsgLeaf, GpuCsgOp, GpuInstance, GpuMaterial, GpuShape};
 
