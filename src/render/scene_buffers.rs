@@ -54,13 +54,13 @@ pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 19] = [
     map_array_entry(10, SCENE_VISIBILITY),        // base_color_maps
     sampler_entry(11, SCENE_VISIBILITY),          // map_linear
     sampler_entry(12, SCENE_VISIBILITY),          // map_nearest
-    // The uniform copies (gpu::uniform_tables), in Table::ALL's order.
-    uniform_entry(13, SCENE_VISIBILITY), // nodes_u
-    uniform_entry(14, SCENE_VISIBILITY), // instances_u
-    uniform_entry(15, SCENE_VISIBILITY), // shapes_u
-    uniform_entry(16, SCENE_VISIBILITY), // materials_u
-    uniform_entry(17, SCENE_VISIBILITY), // csg_ops_u
-    uniform_entry(18, SCENE_VISIBILITY), // csg_leaves_u
+    // The uniform copies (gpu::uniform_tables).
+    uniform_entry(Table::Nodes.binding(), SCENE_VISIBILITY), // nodes_u
+    uniform_entry(Table::Instances.binding(), SCENE_VISIBILITY), // instances_u
+    uniform_entry(Table::Shapes.binding(), SCENE_VISIBILITY), // shapes_u
+    uniform_entry(Table::Materials.binding(), SCENE_VISIBILITY), // materials_u
+    uniform_entry(Table::CsgOps.binding(), SCENE_VISIBILITY), // csg_ops_u
+    uniform_entry(Table::CsgLeaves.binding(), SCENE_VISIBILITY), // csg_leaves_u
 ];
 
 /// The scene's bind group layout object. wgpu pools layouts by their
@@ -404,8 +404,7 @@ fn storage_buffer<T: bytemuck::Pod>(gpu: &Gpu, label: &str, data: &[T]) -> wgpu:
 
 /// A uniform copy of a table's `bytes`, zero-padded to the size WGSL
 /// declares.
-fn uniform_copy(gpu: &Gpu, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-    let mut contents = bytes.to_vec();
+fn uniform_copy(gpu: &Gpu, label: &str, mut contents: Vec<u8>) -> wgpu::Buffer {
     contents.resize(UNIFORM_TABLE_BYTES as usize, 0);
     gpu.device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -701,10 +700,10 @@ impl SceneBuffers {
             .collect();
 
         gpu.scoped(|| {
-            let unused = uniform_copy(gpu, "scene table not read (uniform copy)", &[]);
+            let unused = uniform_copy(gpu, "scene table not read (uniform copy)", Vec::new());
             let uniform_copies: Vec<wgpu::Buffer> = Table::ALL
                 .into_iter()
-                .zip(&copies)
+                .zip(copies)
                 .map(|(t, bytes)| match bytes {
                     Some(bytes) => uniform_copy(gpu, &format!("scene {t:?} (uniform copy)"), bytes),
                     None => unused.clone(),
