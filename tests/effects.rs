@@ -673,3 +673,83 @@ fn raster_spheres_are_drawn_at_the_coarsest_level_within_half_a_pixel() {
         );
     }
 }
+
+/// The raster pass draws front to back (the nearest draw first, so hidden
+/// fragments fail the depth test before they are shaded), yet keeps the
+/// image the scene's order gives, exact ties included: where fragments of
+/// several draws or instances have exactly the same depth, the one first in
+/// the scene's order stays. Here three boxes are one box: two instances of
+/// shape "a" (red, then green) and one of shape "b" (blue), the same
+/// triangles under the same matrix, so their depths tie at every pixel; a
+/// small ball listed last sits nearer the eye, so it is drawn first and the
+/// boxes after it, backward. The red box (GPU instance 0, id 1) must win
+/// every tie: drawn in the scene's order with `Less` it would; a plain
+/// front-to-back sort would show blue, and drawing a draw's instances in
+/// one call with `LessEqual`, green.
+#[test]
+fn front_to_back_raster_draws_keep_the_scene_orders_ties() {
+    let gpu = gpu();
+    let size = 64u32;
+    let scene = scene(&format!(
+        r#"(version: 1,
+        camera: (eye: (0.0, 0.0, 6.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: {size}, height: {size}),
+        ambient: (1.0, 1.0, 1.0), background: (0.0, 0.0, 0.0),
+        lights: [],
+        materials: {{
+            "red": (base_color: (1.0, 0.0, 0.0), model: BlinnPhong, outline_width_px: 0.0),
+            "green": (base_color: (0.0, 1.0, 0.0), model: BlinnPhong, outline_width_px: 0.0),
+            "blue": (base_color: (0.0, 0.0, 1.0), model: BlinnPhong, outline_width_px: 0.0),
+        }},
+        shapes: {{
+            "a": Box(half_extents: (1.0, 1.0, 1.0)),
+            "b": Box(half_extents: (1.0, 1.0, 1.0)),
+            "ball": Sphere(radius: 0.1),
+        }},
+        instances: [
+            (shape: "a", material: "red", transform: (rotate_deg: (10.0, 20.0, 0.0))),
+            (shape: "a", material: "green", transform: (rotate_deg: (10.0, 20.0, 0.0))),
+            (shape: "b", material: "blue", transform: (rotate_deg: (10.0, 20.0, 0.0))),
+            (shape: "ball", material: "green", transform: (translate: (1.6, 1.6, 3.0))),
+        ],
+    )"#
+    ));
+    let settings = RenderSettings {
+        mode: RenderMode::Raster,
+        ..pixel_centre_settings(&scene)
+    };
+    let r = rendered(&gpu, scene, settings);
+    // Draws in the scene's shape order: a (instances 0 and 1), b (2), ball (3).
+    assert_eq!(
+        r.raster_sequence(0),
+        vec![
+            (2, 3..4, false),
+            (1, 2..3, true),
+            (0, 1..2, true),
+            (0, 0..1, true)
+        ],
+        "the ball first, then the boxes backward, one instance a call"
+    );
+    let ids = r.read_ids(&gpu).unwrap();
+    let img = r.read_srgb8(&gpu).unwrap();
+    let mut box_pixels = 0;
+    for (i, &id) in ids.iter().enumerate() {
+        let (x, y) = (i as u32 % size, i as u32 / size);
+        if id == 0 || id == 4 {
+            continue; // background or the ball
+        }
+        box_pixels += 1;
+        assert_eq!(
+            id,
+            1,
+            "pixel ({x}, {y}) shows GPU instance {}, not the red box",
+            id - 1
+        );
+        let [red, green, blue] = rgb_at(&img, size, x, y);
+        assert!(
+            red > 200 && green < 30 && blue < 30,
+            "pixel ({x}, {y}) is {red}, {green}, {blue}"
+        );
+    }
+    // The box spans about a third of the view: far more than a few pixels.
+    assert!(box_pixels > 200, "only {box_pixels} box pixels");
+}

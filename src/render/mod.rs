@@ -595,6 +595,27 @@ impl Renderer {
         raster::draw_levels(&self.buffers, &self.scene, &view, time)
     }
 
+    /// What the raster pass draws for sample `k`: each draw's level
+    /// ([`Renderer::raster_levels`]) and its distance from the sample's
+    /// eye, by which the draws are made front to back
+    /// ([`raster::draw_distances`]).
+    pub fn raster_draws(&self, k: u32) -> raster::RasterDraws {
+        let smp = self.sample_schedule().sample(k);
+        let time = self.buffers.has_motion.then_some(smp.time);
+        let eye = self.camera_for(&smp).eye;
+        raster::RasterDraws {
+            mode: self.primary_mode(),
+            levels: self.raster_levels(k),
+            distances: raster::draw_distances(&self.buffers, &self.scene, eye, time),
+        }
+    }
+
+    /// The raster pass's draw calls for sample `k`, in order
+    /// ([`raster::RasterDraws::sequence`]).
+    pub fn raster_sequence(&self, k: u32) -> Vec<(usize, std::ops::Range<u32>, bool)> {
+        self.raster_draws(k).sequence(&self.buffers)
+    }
+
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
@@ -644,7 +665,7 @@ impl Renderer {
             self.samples
         };
         let uniforms = self.frame_uniforms(k);
-        let levels = self.raster_levels(k);
+        let draws = self.raster_draws(k);
         if let Some((pass, prev)) = &moving {
             pass.write_uniforms(gpu, &self.reproject_uniforms(prev));
         }
@@ -686,7 +707,7 @@ impl Renderer {
                 &self.targets,
                 &self.buffers,
                 background,
-                &raster::RasterDraws { mode, levels },
+                &draws,
                 timer.as_mut().and_then(|t| t.timer.render_writes(t.raster)),
             );
         }

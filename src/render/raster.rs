@@ -4,6 +4,7 @@
 //! the scene's shared group; group 1 is [`PASS_LAYOUT`] (frame uniforms).
 
 use std::collections::HashMap;
+use std::ops::Range;
 
 use glam::{Mat3, Vec3};
 
@@ -12,7 +13,7 @@ use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::camera::SampleCamera;
 use crate::render::scene_buffers::{
-    scene_layout, Cull, Draw, LightLayout, MeshLevel, SceneBuffers, ShadingVariant, PASS_GROUP,
+    scene_layout, Cull, LightLayout, MeshLevel, SceneBuffers, ShadingVariant, PASS_GROUP,
     SCENE_GROUP,
 };
 use crate::render::settings::RenderMode;
@@ -22,9 +23,10 @@ use crate::render::targets::{
 use crate::scene::{Camera, Scene, Shape, MAX_SILHOUETTE_ERROR_PX};
 
 pub struct RasterPass {
-    /// One pipeline per [`Cull`] mode (back, front, none) for each
-    /// [`RasterVariant`] a scene has needed, built the first time.
-    pipelines: HashMap<RasterVariant, [wgpu::RenderPipeline; 3]>,
+    /// One pipeline per [`Cull`] mode (back, front, none) and draw
+    /// direction ([`DrawCall::backward`]) for each [`RasterVariant`] a
+    /// scene has needed, built the first time.
+    pipelines: HashMap<RasterVariant, [wgpu::RenderPipeline; 6]>,
     variant: RasterVariant,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
@@ -199,18 +201,23 @@ impl RasterPass {
         let Some(pipelines) = self.pipelines.get(&self.variant) else {
             return;
         };
-        for (d, level) in draws.selected(scene) {
-            pass.set_pipeline(
-                &pipelines[match d.cull {
-                    Cull::Back => 0,
-                    Cull::Front => 1,
-                    Cull::None => 2,
-                }],
-            );
+        for call in draws.calls(scene) {
+            let cull = match scene.draws[call.draw].cull {
+                Cull::Back => 0,
+                Cull::Front => 1,
+                Cull::None => 2,
+            };
+            let level = call.level;
+            let (pipeline, first) = if call.backward {
+                (3 + cull, level.reversed_first_index)
+            } else {
+                (cull, level.first_index)
+            };
+            pass.set_pipeline(&pipelines[pipeline]);
             pass.draw_indexed(
-                level.first_index..level.first_index + level.index_count,
+                first..first + level.index_count,
                 level.base_vertex,
-                d.instances.clone(),
+                call.instances,
             );
         }
     }
@@ -225,37 +232,136 @@ pub struct RasterDraws {
     /// The level of detail of each of the scene's draws ([`draw_levels`]);
     /// missing entries draw the finest.
     pub levels: Vec<usize>,
+    /// How near each of the scene's draws is to the eye ([`draw_distances`]),
+    /// which orders them ([`RasterDraws::calls`]); empty: the scene's order.
+    pub distances: Vec<f32>,
+}
+
+/// One draw call of the raster pass: `instances` of the scene's draw
+/// number `draw` at `level`.
+#[derive(Debug, Clone)]
+struct DrawCall {
+    draw: usize,
+    level: MeshLevel,
+    instances: Range<u32>,
+    /// The triangles in reverse order, depth-tested `LessEqual`: at equal
+    /// depth the last fragment drawn stays rather than the first.
+    backward: bool,
 }
 
 impl RasterDraws {
-    /// The draws to make, each with its level's triangles.
-    fn selected<'a>(
-        &'a self,
-        scene: &'a SceneBuffers,
-    ) -> impl Iterator<Item = (&'a Draw, MeshLevel)> + 'a {
-        scene
-            .draws
-            .iter()
-            .enumerate()
-            .filter(|(_, d)| match self.mode {
+    /// The draw calls to make, nearest draws first.
+    ///
+    /// Drawn front to back, a fragment behind what is already drawn fails
+    /// the depth test before the fragment shader runs; the shading is most
+    /// of the raster pass on the CPU driver (docs/performance.md). But the
+    /// image must stay the one the scene's order gives, in which, at exactly
+    /// equal depth (an object standing on the floor, along the line where
+    /// they meet; a mesh's silhouette, where its front and back meet), the
+    /// first fragment drawn stays. So the draws made so far are always a run
+    /// of the scene's draws, `lo..=hi`, grown from the nearest by one
+    /// neighbour at a time, the nearer of the two. Draw `hi + 1` goes
+    /// forward with the `Less` test: it loses every tie to those drawn, all
+    /// earlier in the scene, and keeps its own order. Draw `lo - 1` goes
+    /// backward, its instances one call each from the last, each with its
+    /// triangles reversed, and the `LessEqual` test: its fragments reach
+    /// each pixel in exactly the reverse of the scene's order, so the last
+    /// of them at the nearest depth stays, the one drawn first in the
+    /// scene's order, and it wins every tie against the later draws drawn
+    /// so far. Nothing lies at the far plane (the depth clear value), which
+    /// the projection puts beyond the scene's bounds.
+    /// The draw calls in order, each as (index into the scene's draws, its
+    /// GPU instances, whether it goes backward).
+    pub fn sequence(&self, scene: &SceneBuffers) -> Vec<(usize, Range<u32>, bool)> {
+        self.calls(scene)
+            .into_iter()
+            .map(|c| (c.draw, c.instances, c.backward))
+            .collect()
+    }
+
+    fn calls(&self, scene: &SceneBuffers) -> Vec<DrawCall> {
+        let drawn: Vec<usize> = (0..scene.draws.len())
+            .filter(|&i| match self.mode {
                 RenderMode::Raster => true,
-                RenderMode::Hybrid => d.is_mesh,
+                RenderMode::Hybrid => scene.draws[i].is_mesh,
                 RenderMode::Raytrace => false,
             })
-            .map(|(i, d)| {
-                let level = self.levels.get(i).copied().unwrap_or(0);
-                (d, d.levels[level.min(d.levels.len() - 1)])
-            })
+            .collect();
+        let key = |p: usize| self.distances.get(drawn[p]).copied().unwrap_or(0.0);
+        let call = |p: usize, instances: Range<u32>, backward: bool| {
+            let d = &scene.draws[drawn[p]];
+            let level = self.levels.get(drawn[p]).copied().unwrap_or(0);
+            DrawCall {
+                draw: drawn[p],
+                level: d.levels[level.min(d.levels.len() - 1)],
+                instances,
+                backward,
+            }
+        };
+        let mut calls = Vec::new();
+        // The first of the nearest (min_by keeps the first of equals).
+        let Some(start) = (0..drawn.len()).min_by(|&a, &b| key(a).total_cmp(&key(b))) else {
+            return calls;
+        };
+        calls.push(call(
+            start,
+            scene.draws[drawn[start]].instances.clone(),
+            false,
+        ));
+        let (mut lo, mut hi) = (start, start);
+        while lo > 0 || hi + 1 < drawn.len() {
+            if hi + 1 == drawn.len() || (lo > 0 && key(lo - 1) < key(hi + 1)) {
+                lo -= 1;
+                let instances = scene.draws[drawn[lo]].instances.clone();
+                calls.extend(instances.rev().map(|k| call(lo, k..k + 1, true)));
+            } else {
+                hi += 1;
+                calls.push(call(hi, scene.draws[drawn[hi]].instances.clone(), false));
+            }
+        }
+        calls
     }
 }
 
-/// The three cull-mode pipelines of one variant.
+/// How near each of `buffers.draws` is to `eye` for one sample, to order
+/// them ([`RasterDraws::calls`]): the distance to the nearest origin of its
+/// instances (at the sample's shutter `time` when instances move). Planes
+/// are infinitely far: a floor or a wall is behind what stands on it, but
+/// its nearest point is under the eye, its origin anywhere.
+pub fn draw_distances(
+    buffers: &SceneBuffers,
+    scene: &Scene,
+    eye: Vec3,
+    time: Option<f32>,
+) -> Vec<f32> {
+    buffers
+        .draws
+        .iter()
+        .map(|d| {
+            if d.is_plane {
+                return f32::INFINITY;
+            }
+            d.instances
+                .clone()
+                .map(|gpu_index| {
+                    let inst = &scene.instances[buffers.instance_order[gpu_index as usize]];
+                    let m = time.map_or(inst.world_from_object, |t| inst.world_from_object_at(t));
+                    m.w_axis.truncate().distance(eye)
+                })
+                .fold(f32::INFINITY, f32::min)
+        })
+        .collect()
+}
+
+/// The pipelines of one variant: the three cull modes (back, front, none)
+/// with the `Less` depth test (draws made forward), then the same with
+/// `LessEqual` (backward: [`RasterDraws::calls`]).
 fn raster_pipelines(
     gpu: &Gpu,
     pipeline_layout: &wgpu::PipelineLayout,
     module: &wgpu::ShaderModule,
     variant: RasterVariant,
-) -> [wgpu::RenderPipeline; 3] {
+) -> [wgpu::RenderPipeline; 6] {
     let textures = variant.textures;
     let mut constants = variant.shading.constants().to_vec();
     constants.extend(variant.lights.constants());
@@ -277,7 +383,7 @@ fn raster_pipelines(
             write_mask: wgpu::ColorWrites::ALL,
         })
     };
-    let pipeline = |cull_mode| {
+    let pipeline = |cull_mode, depth_compare| {
         gpu.device
             .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some("raster pipeline"),
@@ -297,7 +403,7 @@ fn raster_pipelines(
                 depth_stencil: Some(wgpu::DepthStencilState {
                     format: DEPTH_FORMAT,
                     depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    depth_compare: Some(depth_compare),
                     stencil: Default::default(),
                     bias: Default::default(),
                 }),
@@ -322,10 +428,17 @@ fn raster_pipelines(
                 cache: None,
             })
     };
+    let (forward, backward) = (
+        wgpu::CompareFunction::Less,
+        wgpu::CompareFunction::LessEqual,
+    );
     [
-        pipeline(Some(wgpu::Face::Back)),
-        pipeline(Some(wgpu::Face::Front)),
-        pipeline(None),
+        pipeline(Some(wgpu::Face::Back), forward),
+        pipeline(Some(wgpu::Face::Front), forward),
+        pipeline(None, forward),
+        pipeline(Some(wgpu::Face::Back), backward),
+        pipeline(Some(wgpu::Face::Front), backward),
+        pipeline(None, backward),
     ]
 }
 

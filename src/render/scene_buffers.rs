@@ -91,6 +91,9 @@ pub struct Draw {
     pub shape: usize,
     /// A triangle mesh from a file (hybrid mode rasterizes only these).
     pub is_mesh: bool,
+    /// A plane (a quad or a disk): a floor or a wall, which the raster
+    /// pass draws after the shapes in front of it (`render::raster::draw_order`).
+    pub is_plane: bool,
     pub cull: Cull,
     /// The shape's triangles, finest first: one level, or a sphere's
     /// [`SPHERE_LEVELS`] (the raster pass picks one per frame,
@@ -104,6 +107,11 @@ pub struct Draw {
 #[derive(Debug, Clone, Copy)]
 pub struct MeshLevel {
     pub first_index: u32,
+    /// The same triangles in reverse order (each keeps its winding), at
+    /// `reversed_first_index .. + index_count`: the raster pass draws a
+    /// shape backwards where it must win the ties the forward order lost
+    /// (`render::raster::RasterDraws::calls`).
+    pub reversed_first_index: u32,
     pub index_count: u32,
     pub base_vertex: i32,
     /// How far inside the true surface the triangles reach, in object
@@ -537,6 +545,7 @@ impl SceneBuffers {
             for (mesh, inset) in &meshes {
                 levels.push(MeshLevel {
                     first_index: indices.len() as u32,
+                    reversed_first_index: (indices.len() + mesh.indices.len()) as u32,
                     index_count: mesh.indices.len() as u32,
                     base_vertex: vertices.len() as i32,
                     inset: *inset,
@@ -551,6 +560,7 @@ impl SceneBuffers {
                     },
                 ));
                 indices.extend_from_slice(&mesh.indices);
+                indices.extend(mesh.indices.chunks_exact(3).rev().flatten());
             }
             let mut group_start = first;
             while group_start < end {
@@ -563,6 +573,7 @@ impl SceneBuffers {
                 draws.push(Draw {
                     shape: shape_id,
                     is_mesh: matches!(shape, Shape::Mesh(_)),
+                    is_plane: matches!(shape, Shape::Plane(_)),
                     cull,
                     levels: levels.clone(),
                     instances: group_start..group_end,
