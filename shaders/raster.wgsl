@@ -12,6 +12,13 @@
 // Group 0: the scene (lib/scene_bindings.wgsl). Group 1: this pass's own.
 @group(1) @binding(0) var<uniform> frame: FrameUniforms;
 
+// False in hybrid mode's pipelines (src/render/raster.rs RasterVariant):
+// the trace pass shades every pixel, rasterized ones too, from the normal,
+// depth, id and albedo written here, so the fragments skip the shading and
+// leave the colour target unwritten (half the pass's time on the CPU
+// driver, docs/performance.md).
+override RASTER_SHADE: bool = true;
+
 // One output for both vertex entry points: vs_main leaves the textured
 // inputs (locations 11 to 13) zero, and fs_main does not read them, so the
 // CPU driver does not interpolate them there.
@@ -128,7 +135,9 @@ struct GBufferTextured {
     @location(3) albedo: vec4<f32>,
 }
 
-// Shades one fragment with material m (its base colour already resolved).
+// Shades one fragment with material m (its base colour already resolved);
+// without RASTER_SHADE, only its normal, depth and id (the colour is not
+// written).
 fn shade_fragment(m: GpuMaterial, world_pos: vec3<f32>, world_normal: vec3<f32>, instance: u32, mirrored: u32, front_facing: bool) -> GBuffer {
     var n = normalize(world_normal);
     // Two-sided surfaces (planes) shade their back with the flipped normal;
@@ -137,11 +146,14 @@ fn shade_fragment(m: GpuMaterial, world_pos: vec3<f32>, world_normal: vec3<f32>,
         n = -n;
     }
     let eye = frame.eye_in_world.xyz;
-    let v = normalize(eye - world_pos);
-    var c = shade_ambient(m, n, v, frame.ambient.rgb);
-    for (var i = 0u; i < light_loop_count(frame.light_count); i++) {
-        let ls = sample_light(i, lights[i], world_pos);
-        c += shade_light(m, n, v, ls.to_light, ls.radiance);
+    var c = vec3<f32>(0.0);
+    if RASTER_SHADE {
+        let v = normalize(eye - world_pos);
+        c = shade_ambient(m, n, v, frame.ambient.rgb);
+        for (var i = 0u; i < light_loop_count(frame.light_count); i++) {
+            let ls = sample_light(i, lights[i], world_pos);
+            c += shade_light(m, n, v, ls.to_light, ls.radiance);
+        }
     }
     var out: GBuffer;
     out.color = vec4<f32>(c, 1.0);

@@ -240,7 +240,7 @@ impl Renderer {
     }
 
     fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
-        let raster = RasterPass::variant_of(&self.scene, &self.buffers);
+        let raster = RasterPass::variant_of(&self.scene, &self.buffers, self.settings.mode);
         self.raster.prepare(gpu, &self.frame, raster);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         let traced = self.trace.prepare(
@@ -443,7 +443,7 @@ impl Renderer {
     fn keys_after_edit(&self, scene: &Scene) -> PipelineKeys {
         let want = trace::Variant::of(scene, &self.buffers, &self.settings);
         PipelineKeys {
-            raster: RasterPass::variant_of(scene, &self.buffers),
+            raster: RasterPass::variant_of(scene, &self.buffers, self.settings.mode),
             trace: self.trace.variant_for_edit(want),
             driver: self.trace.uses_driver(),
             reproject: self.settings.temporal != Temporal::Off,

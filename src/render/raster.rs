@@ -48,6 +48,10 @@ pub struct RasterVariant {
     lights: LightLayout,
     /// The tables read from their uniform copies.
     tables: UniformTables,
+    /// Whether the fragments are shaded: in raster mode; in hybrid mode the
+    /// trace pass shades every pixel, rasterized ones too, and reads only
+    /// the normal, depth, id and albedo (override `RASTER_SHADE`).
+    shade: bool,
 }
 
 /// Group 1 of the raster pass, binding by binding as `shaders/raster.wgsl`
@@ -85,13 +89,14 @@ impl RasterPass {
         })
     }
 
-    /// The variant `scene` (uploaded as `buffers`) needs.
-    pub fn variant_of(scene: &Scene, buffers: &SceneBuffers) -> RasterVariant {
+    /// The variant `scene` (uploaded as `buffers`) needs in `mode`.
+    pub fn variant_of(scene: &Scene, buffers: &SceneBuffers, mode: RenderMode) -> RasterVariant {
         RasterVariant {
             textures: buffers.uses_textures,
             shading: ShadingVariant::of(&scene.materials, &scene.lights),
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
+            shade: mode == RenderMode::Raster,
         }
     }
 
@@ -366,6 +371,7 @@ fn raster_pipelines(
     let mut constants = variant.shading.constants().to_vec();
     constants.extend(variant.lights.constants());
     constants.push(variant.tables.constant());
+    constants.push(("RASTER_SHADE", f64::from(u8::from(variant.shade))));
     let options = || wgpu::PipelineCompilationOptions {
         constants: &constants,
         ..Default::default()
@@ -383,6 +389,16 @@ fn raster_pipelines(
             write_mask: wgpu::ColorWrites::ALL,
         })
     };
+    // Unshaded fragments (hybrid mode) leave the colour target as cleared.
+    let color_target = Some(wgpu::ColorTargetState {
+        format: COLOR_FORMAT,
+        blend: None,
+        write_mask: if variant.shade {
+            wgpu::ColorWrites::ALL
+        } else {
+            wgpu::ColorWrites::empty()
+        },
+    });
     let pipeline = |cull_mode, depth_compare| {
         gpu.device
             .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -413,7 +429,7 @@ fn raster_pipelines(
                     entry_point: Some(fs),
                     compilation_options: options(),
                     targets: &[
-                        target(COLOR_FORMAT),
+                        color_target.clone(),
                         target(NORMAL_DEPTH_FORMAT),
                         target(ID_FORMAT),
                         // Only textured scenes' trace pass reads the albedo.
