@@ -753,3 +753,37 @@ fn front_to_back_raster_draws_keep_the_scene_orders_ties() {
     // The box spans about a third of the view: far more than a few pixels.
     assert!(box_pixels > 200, "only {box_pixels} box pixels");
 }
+
+/// A draw of many instances is never made backward (one call per instance):
+/// 65 small boxes listed before a nearer ball go first, forward, and the
+/// ball after them, though front to back would start with the ball.
+#[test]
+fn raster_draws_of_many_instances_go_forward() {
+    let gpu = gpu();
+    let boxes: Vec<String> = (0..65)
+        .map(|i| {
+            let (x, y) = (f64::from(i % 13) - 6.0, f64::from(i / 13) - 2.0);
+            format!(r#"(shape: "a", material: "m", transform: (translate: ({x}, {y}, -4.0), scale: (0.2, 0.2, 0.2)))"#)
+        })
+        .collect();
+    let scene = scene(&format!(
+        r#"(version: 1,
+        camera: (eye: (0.0, 0.0, 6.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 60.0, width: 32, height: 32),
+        ambient: (1.0, 1.0, 1.0), background: (0.0, 0.0, 0.0),
+        lights: [],
+        materials: {{ "m": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong, outline_width_px: 0.0) }},
+        shapes: {{ "a": Box(half_extents: (1.0, 1.0, 1.0)), "ball": Sphere(radius: 0.5) }},
+        instances: [{}, (shape: "ball", material: "m", transform: (translate: (0.0, 0.0, 2.0)))],
+    )"#,
+        boxes.join(", ")
+    ));
+    let settings = RenderSettings {
+        mode: RenderMode::Raster,
+        ..pixel_centre_settings(&scene)
+    };
+    let r = rendered(&gpu, scene, settings);
+    assert_eq!(
+        r.raster_sequence(0),
+        vec![(0, 0..65, false), (1, 65..66, false)]
+    );
+}

@@ -242,6 +242,10 @@ pub struct RasterDraws {
     pub distances: Vec<f32>,
 }
 
+/// The most instances a draw made backward may have (one call each:
+/// [`RasterDraws::calls`]).
+const MAX_BACKWARD_INSTANCES: usize = 64;
+
 /// One draw call of the raster pass: `instances` of the scene's draw
 /// number `draw` at `level`.
 #[derive(Debug, Clone)]
@@ -274,7 +278,9 @@ impl RasterDraws {
     /// of them at the nearest depth stays, the one drawn first in the
     /// scene's order, and it wins every tie against the later draws drawn
     /// so far. Nothing lies at the far plane (the depth clear value), which
-    /// the projection puts beyond the scene's bounds.
+    /// the projection puts beyond the scene's bounds. A draw of more than
+    /// [`MAX_BACKWARD_INSTANCES`] instances is never made backward (the run
+    /// starts at or before it), nor are the draws after it.
     /// The draw calls in order, each as (index into the scene's draws, its
     /// GPU instances, whether it goes backward).
     pub fn sequence(&self, scene: &SceneBuffers) -> Vec<(usize, Range<u32>, bool)> {
@@ -304,8 +310,17 @@ impl RasterDraws {
             }
         };
         let mut calls = Vec::new();
+        // A draw of many instances would go backward as as many calls: the
+        // run starts at or before the first such draw, so that it and every
+        // draw after it go forward.
+        let many = |p: &usize| scene.draws[drawn[*p]].instances.len() > MAX_BACKWARD_INSTANCES;
+        let last_start = (0..drawn.len())
+            .find(many)
+            .unwrap_or(drawn.len().saturating_sub(1));
         // The first of the nearest (min_by keeps the first of equals).
-        let Some(start) = (0..drawn.len()).min_by(|&a, &b| key(a).total_cmp(&key(b))) else {
+        let Some(start) =
+            (0..drawn.len().min(last_start + 1)).min_by(|&a, &b| key(a).total_cmp(&key(b)))
+        else {
             return calls;
         };
         calls.push(call(
