@@ -713,11 +713,7 @@ fn front_to_back_raster_draws_keep_the_scene_orders_ties() {
         ],
     )"#
     ));
-    let settings = RenderSettings {
-        mode: RenderMode::Raster,
-        ..pixel_centre_settings(&scene)
-    };
-    let r = rendered(&gpu, scene, settings);
+    let r = rendered_in_raster_mode(&gpu, scene);
     // Draws in the scene's shape order: a (instances 0 and 1), b (2), ball (3).
     assert_eq!(
         r.raster_sequence(0),
@@ -777,13 +773,21 @@ fn raster_draws_of_many_instances_go_forward() {
     )"#,
         boxes.join(", ")
     ));
-    let settings = RenderSettings {
-        mode: RenderMode::Raster,
-        ..pixel_centre_settings(&scene)
-    };
-    let r = rendered(&gpu, scene, settings);
+    let r = rendered_in_raster_mode(&gpu, scene);
     assert_eq!(
         r.raster_sequence(0),
         vec![(0, 0..65, false), (1, 65..66, false)]
     );
+}
+
+/// One sample at each pixel centre in raster mode.
+fn rendered_in_raster_mode(
+    gpu: &celray::gpu::Gpu,
+    scene: celray::scene::Scene,
+) -> celray::render::Renderer {
+    let settings = RenderSettings {
+        mode: RenderMode::Raster,
+        ..pixel_centre_settings(&scene)
+    };
+    rendered(gpu, scene, settings)
 }
