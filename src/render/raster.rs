@@ -50,7 +50,9 @@ pub struct RasterVariant {
     tables: UniformTables,
     /// Whether the fragments are shaded: in raster mode; in hybrid mode the
     /// trace pass shades every pixel, rasterized ones too, and reads only
-    /// the normal, depth, id and albedo (override `RASTER_SHADE`).
+    /// the normal, depth, id and albedo, so the colour goes unwritten (and
+    /// untextured scenes run the geometry entry points of
+    /// `shaders/raster.wgsl`).
     shade: bool,
 }
 
@@ -386,16 +388,19 @@ fn raster_pipelines(
     let mut constants = variant.shading.constants().to_vec();
     constants.extend(variant.lights.constants());
     constants.push(variant.tables.constant());
-    constants.push(("RASTER_SHADE", f64::from(u8::from(variant.shade))));
     let options = || wgpu::PipelineCompilationOptions {
         constants: &constants,
         ..Default::default()
     };
-    // Untextured scenes run the entry points without texture varyings.
-    let (vs, fs) = if textures {
-        ("vs_textured", "fs_textured")
-    } else {
-        ("vs_main", "fs_main")
+    // Untextured scenes run the entry points without texture varyings;
+    // untextured hybrid mode, those that neither shade nor pass the
+    // material. Textured hybrid mode keeps the textured pair, its colour
+    // unwritten: a geometry-only pair measured slower there
+    // (docs/performance.md).
+    let (vs, fs) = match (textures, variant.shade) {
+        (false, true) => ("vs_main", "fs_main"),
+        (true, _) => ("vs_textured", "fs_textured"),
+        (false, false) => ("vs_geometry", "fs_geometry"),
     };
     let target = |format| {
         Some(wgpu::ColorTargetState {
@@ -404,7 +409,8 @@ fn raster_pipelines(
             write_mask: wgpu::ColorWrites::ALL,
         })
     };
-    // Unshaded fragments (hybrid mode) leave the colour target as cleared.
+    // Unshaded fragments (hybrid mode) write no colour: the target stays
+    // as cleared.
     let color_target = Some(wgpu::ColorTargetState {
         format: COLOR_FORMAT,
         blend: None,
