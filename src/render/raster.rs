@@ -261,6 +261,15 @@ struct DrawCall {
 }
 
 impl RasterDraws {
+    /// The draw calls in order, each as (index into the scene's draws, its
+    /// GPU instances, whether it goes backward).
+    pub fn sequence(&self, scene: &SceneBuffers) -> Vec<(usize, Range<u32>, bool)> {
+        self.calls(scene)
+            .into_iter()
+            .map(|c| (c.draw, c.instances, c.backward))
+            .collect()
+    }
+
     /// The draw calls to make, nearest draws first.
     ///
     /// Drawn front to back, a fragment behind what is already drawn fails
@@ -283,15 +292,6 @@ impl RasterDraws {
     /// the projection puts beyond the scene's bounds. A draw of more than
     /// [`MAX_BACKWARD_INSTANCES`] instances is never made backward (the run
     /// starts at or before it), nor are the draws after it.
-    /// The draw calls in order, each as (index into the scene's draws, its
-    /// GPU instances, whether it goes backward).
-    pub fn sequence(&self, scene: &SceneBuffers) -> Vec<(usize, Range<u32>, bool)> {
-        self.calls(scene)
-            .into_iter()
-            .map(|c| (c.draw, c.instances, c.backward))
-            .collect()
-    }
-
     fn calls(&self, scene: &SceneBuffers) -> Vec<DrawCall> {
         let drawn: Vec<usize> = (0..scene.draws.len())
             .filter(|&i| match self.mode {
@@ -312,7 +312,7 @@ impl RasterDraws {
             }
         };
         let mut calls = Vec::new();
-        // A draw of many instances would go backward as as many calls: the
+        // A draw of many instances would go backward as that many calls: the
         // run starts at or before the first such draw, so that it and every
         // draw after it go forward.
         let many = |p: &usize| scene.draws[drawn[*p]].instances.len() > MAX_BACKWARD_INSTANCES;
