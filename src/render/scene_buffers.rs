@@ -92,7 +92,7 @@ pub struct Draw {
     /// A triangle mesh from a file (hybrid mode rasterizes only these).
     pub is_mesh: bool,
     /// A plane (a quad or a disk): a floor or a wall, which the raster
-    /// pass draws after the shapes in front of it (`render::raster::draw_order`).
+    /// pass draws after the shapes in front of it (`render::raster::draw_distances`).
     pub is_plane: bool,
     pub cull: Cull,
     /// The shape's triangles, finest first: one level, or a sphere's
