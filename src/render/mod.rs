@@ -603,10 +603,11 @@ impl Renderer {
         let smp = self.sample_schedule().sample(k);
         let time = self.buffers.has_motion.then_some(smp.time);
         let eye = self.camera_for(&smp).eye;
+        let mode = self.primary_mode();
         raster::RasterDraws {
-            mode: self.primary_mode(),
+            mode,
             levels: self.raster_levels(k),
-            distances: raster::draw_distances(&self.buffers, &self.scene, eye, time),
+            distances: raster::draw_distances(&self.buffers, &self.scene, mode, eye, time),
         }
     }
 
@@ -957,7 +958,13 @@ impl Renderer {
     /// image) and skips a raster pass that would only clear its targets.
     fn primary_mode(&self) -> RenderMode {
         match self.settings.mode {
-            RenderMode::Hybrid if !self.buffers.draws.iter().any(|d| d.is_mesh) => {
+            RenderMode::Hybrid
+                if !self
+                    .buffers
+                    .draws
+                    .iter()
+                    .any(|d| d.drawn_in(RenderMode::Hybrid)) =>
+            {
                 RenderMode::Raytrace
             }
             mode => mode,

@@ -216,7 +216,7 @@ impl RasterPass {
             };
             let level = call.level;
             let (pipeline, first) = if call.backward {
-                (3 + cull, level.reversed_first_index)
+                (3 + cull, level.reversed_first_index())
             } else {
                 (cull, level.first_index)
             };
@@ -294,11 +294,7 @@ impl RasterDraws {
     /// starts at or before it), nor are the draws after it.
     fn calls(&self, scene: &SceneBuffers) -> Vec<DrawCall> {
         let drawn: Vec<usize> = (0..scene.draws.len())
-            .filter(|&i| match self.mode {
-                RenderMode::Raster => true,
-                RenderMode::Hybrid => scene.draws[i].is_mesh,
-                RenderMode::Raytrace => false,
-            })
+            .filter(|&i| scene.draws[i].drawn_in(self.mode))
             .collect();
         let key = |p: usize| self.distances.get(drawn[p]).copied().unwrap_or(0.0);
         let call = |p: usize, instances: Range<u32>, backward: bool| {
@@ -349,10 +345,12 @@ impl RasterDraws {
 /// them ([`RasterDraws::calls`]): the distance to the nearest origin of its
 /// instances (at the sample's shutter `time` when instances move). Planes
 /// are infinitely far: a floor or a wall is behind what stands on it, but
-/// its nearest point is under the eye, its origin anywhere.
+/// its nearest point is under the eye, its origin anywhere. Draws that
+/// `mode` does not draw are not measured (infinitely far too).
 pub fn draw_distances(
     buffers: &SceneBuffers,
     scene: &Scene,
+    mode: RenderMode,
     eye: Vec3,
     time: Option<f32>,
 ) -> Vec<f32> {
@@ -360,7 +358,7 @@ pub fn draw_distances(
         .draws
         .iter()
         .map(|d| {
-            if d.is_plane {
+            if !d.drawn_in(mode) || matches!(scene.shapes[d.shape], Shape::Plane(_)) {
                 return f32::INFINITY;
             }
             d.instances
@@ -402,24 +400,21 @@ fn raster_pipelines(
         (true, _) => ("vs_textured", "fs_textured"),
         (false, false) => ("vs_geometry", "fs_geometry"),
     };
-    let target = |format| {
+    let target = |format, write_mask| {
         Some(wgpu::ColorTargetState {
             format,
             blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
+            write_mask,
         })
     };
+    let all = wgpu::ColorWrites::ALL;
     // Unshaded fragments (hybrid mode) write no colour: the target stays
     // as cleared.
-    let color_target = Some(wgpu::ColorTargetState {
-        format: COLOR_FORMAT,
-        blend: None,
-        write_mask: if variant.shade {
-            wgpu::ColorWrites::ALL
-        } else {
-            wgpu::ColorWrites::empty()
-        },
-    });
+    let color_writes = if variant.shade {
+        all
+    } else {
+        wgpu::ColorWrites::empty()
+    };
     let pipeline = |cull_mode, depth_compare| {
         gpu.device
             .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -450,12 +445,12 @@ fn raster_pipelines(
                     entry_point: Some(fs),
                     compilation_options: options(),
                     targets: &[
-                        color_target.clone(),
-                        target(NORMAL_DEPTH_FORMAT),
-                        target(ID_FORMAT),
+                        target(COLOR_FORMAT, color_writes),
+                        target(NORMAL_DEPTH_FORMAT, all),
+                        target(ID_FORMAT, all),
                         // Only textured scenes' trace pass reads the albedo.
                         if textures {
-                            target(ALBEDO_FORMAT)
+                            target(ALBEDO_FORMAT, all)
                         } else {
                             None
                         },

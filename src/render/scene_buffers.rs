@@ -22,6 +22,7 @@ use crate::gpu::twins::{
 };
 use crate::gpu::uniform_tables::{Table, UniformTables, UNIFORM_TABLE_BYTES};
 use crate::gpu::{Gpu, GpuError};
+use crate::render::settings::RenderMode;
 use crate::render::textures::{scene_uses_textures, SceneTextures};
 use crate::scene::{
     sphere_inset, tessellate, tessellate_sphere, Light, Material, Mesh, Pattern, Scene,
@@ -91,9 +92,6 @@ pub struct Draw {
     pub shape: usize,
     /// A triangle mesh from a file (hybrid mode rasterizes only these).
     pub is_mesh: bool,
-    /// A plane (a quad or a disk): a floor or a wall, which the raster
-    /// pass draws after the shapes in front of it (`render::raster::draw_distances`).
-    pub is_plane: bool,
     pub cull: Cull,
     /// The shape's triangles, finest first: one level, or a sphere's
     /// [`SPHERE_LEVELS`] (the raster pass picks one per frame,
@@ -107,16 +105,34 @@ pub struct Draw {
 #[derive(Debug, Clone, Copy)]
 pub struct MeshLevel {
     pub first_index: u32,
-    /// The same triangles in reverse order (each keeps its winding), at
-    /// `reversed_first_index .. + index_count`: the raster pass draws a
-    /// shape backwards where it must win the ties the forward order lost
-    /// (`render::raster::RasterDraws::calls`).
-    pub reversed_first_index: u32,
     pub index_count: u32,
     pub base_vertex: i32,
     /// How far inside the true surface the triangles reach, in object
     /// units ([`sphere_inset`]); 0 where they are the surface.
     pub inset: f32,
+}
+
+impl MeshLevel {
+    /// Where the same triangles start in reverse order (each keeping its
+    /// winding): uploaded right after the level's own. The raster pass
+    /// draws a shape backwards where it must win the ties the forward order
+    /// lost (`render::raster::RasterDraws::calls`).
+    pub fn reversed_first_index(&self) -> u32 {
+        self.first_index + self.index_count
+    }
+}
+
+impl Draw {
+    /// Whether the raster pass draws this in `mode`: everything in raster
+    /// mode, the meshes in hybrid mode (the trace pass finds analytic
+    /// shapes exactly), nothing in raytrace mode.
+    pub fn drawn_in(&self, mode: RenderMode) -> bool {
+        match mode {
+            RenderMode::Raster => true,
+            RenderMode::Hybrid => self.is_mesh,
+            RenderMode::Raytrace => false,
+        }
+    }
 }
 
 pub struct SceneBuffers {
@@ -545,7 +561,6 @@ impl SceneBuffers {
             for (mesh, inset) in &meshes {
                 levels.push(MeshLevel {
                     first_index: indices.len() as u32,
-                    reversed_first_index: (indices.len() + mesh.indices.len()) as u32,
                     index_count: mesh.indices.len() as u32,
                     base_vertex: vertices.len() as i32,
                     inset: *inset,
@@ -560,6 +575,8 @@ impl SceneBuffers {
                     },
                 ));
                 indices.extend_from_slice(&mesh.indices);
+                // The same triangles in reverse order right after
+                // (MeshLevel::reversed_first_index).
                 indices.extend(mesh.indices.chunks_exact(3).rev().flatten());
             }
             let mut group_start = first;
@@ -573,7 +590,6 @@ impl SceneBuffers {
                 draws.push(Draw {
                     shape: shape_id,
                     is_mesh: matches!(shape, Shape::Mesh(_)),
-                    is_plane: matches!(shape, Shape::Plane(_)),
                     cull,
                     levels: levels.clone(),
                     instances: group_start..group_end,
