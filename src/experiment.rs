@@ -157,7 +157,7 @@ pub fn run(gpu: &Gpu, args: &ExperimentArgs) -> anyhow::Result<()> {
     ];
     for (name, curves) in &panels {
         for (pattern, points) in curves {
-            println!(
+            out!(
                 "{name:<14} {:<9} slope {:+.2}  errors {:?}",
                 pattern.name(),
                 log_slope(points),
@@ -218,6 +218,6 @@ pub fn run(gpu: &Gpu, args: &ExperimentArgs) -> anyhow::Result<()> {
             .draw()?;
     }
     root.present()?;
-    println!("wrote {}", args.output.display());
+    out!("wrote {}", args.output.display());
     Ok(())
 }

@@ -2,8 +2,31 @@
 //! shading comparison, adapter listing, benchmarks, the sampling
 //! experiment.
 
+/// `println!` for what a command prints on standard output. A reader that
+/// stops early (`celray bench --json | head -1`) ends the command quietly
+/// with success, where `println!` would panic on the closed pipe; any other
+/// write error ends it with a message and exit status 1.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::print_line(format_args!($($arg)*))
+    };
+}
+
 mod bench;
 mod experiment;
+
+/// What `out!` runs: one line to standard output.
+fn print_line(text: std::fmt::Arguments) {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    if let Err(e) = writeln!(stdout, "{text}").and_then(|()| stdout.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: cannot write to standard output: {e}");
+        std::process::exit(1);
+    }
+}
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -397,9 +420,12 @@ fn run(cli: Cli) -> Result<()> {
                 } else {
                     "ray queries: no"
                 };
-                println!(
+                out!(
                     "{}\t{}\t{}\t{}\t{rq}",
-                    a.name, a.backend, a.device_type, a.driver
+                    a.name,
+                    a.backend,
+                    a.device_type,
+                    a.driver
                 );
             }
             Ok(())
@@ -702,9 +728,9 @@ fn compare(args: CompareArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Re
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     if args.json {
         let json = comparison.json(&args.output.display().to_string());
-        println!("{}", serde_json::to_string_pretty(&json)?);
+        out!("{}", serde_json::to_string_pretty(&json)?);
     } else {
-        print!("{}", comparison.text_report());
+        out!("{}", comparison.text_report().trim_end_matches('\n'));
         eprintln!(
             "wrote {} ({} views of {}x{}, {})",
             args.output.display(),
@@ -790,7 +816,7 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
     if report_times {
         let warmup = 10.min(report.frame_ms.len() / 4);
         match app::timing::summarize(&report.frame_ms, warmup) {
-            Some((mean, median, p95, max)) => println!(
+            Some((mean, median, p95, max)) => out!(
                 "{} frames, {}x{} surface, {} view(s), adapter {}\n\
                  frame time (first {warmup} skipped): mean {mean:.2} ms, median {median:.2} ms, \
                  p95 {p95:.2} ms, max {max:.2} ms; {:.1} fps (from the mean)\n\
@@ -803,11 +829,11 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
                 1000.0 / mean,
                 report.samples
             ),
-            None => println!("{} frames: too few to time", report.frames),
+            None => out!("{} frames: too few to time", report.frames),
         }
         let s = &report.startup;
         let at = |ms: Option<f64>| ms.map_or("never".to_string(), |ms| format!("{ms:.0} ms"));
-        println!(
+        out!(
             "startup: first window frame after {}, every view shown after {}; \
              longest wait between window frames until then {:.0} ms",
             at(s.first_frame_ms),
@@ -815,7 +841,7 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
             s.longest_wait_ms
         );
         if let Some(t) = app::timing::mean_pass_times(&report.pass_times) {
-            println!(
+            out!(
                 "GPU per frame (mean of {} timed frames that sampled, all views): raster {:.2} ms, \
                  trace {:.2} ms, outline+accumulate {:.2} ms, resolve {:.2} ms, copy {:.2} ms, \
                  egui {:.2} ms",
@@ -834,7 +860,7 @@ fn view(args: ViewArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Result<(
         }
         if !report.ui_ms.is_empty() {
             let mean = report.ui_ms.iter().sum::<f64>() / report.ui_ms.len() as f64;
-            println!("window CPU per frame (mean): egui {mean:.2} ms");
+            out!("window CPU per frame (mean): egui {mean:.2} ms");
         }
     }
     if let Some(path) = &args.screenshot {

@@ -210,7 +210,7 @@ fn paired_table(r: &Report, case: &str, pairs: u32, series: &[(&'static str, Vec
         b_min.insert(name.to_string(), round(b_least).into());
     }
     if r.json {
-        println!(
+        out!(
             "{}",
             serde_json::json!({
                 "case": case,

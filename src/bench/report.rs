@@ -33,7 +33,7 @@ impl Report {
     /// A human-readable line (tables, headings): printed unless `--json`.
     pub fn line(&self, text: std::fmt::Arguments) {
         if !self.json {
-            println!("{text}");
+            out!("{text}");
         }
     }
 
@@ -58,7 +58,7 @@ impl Report {
             driver: self.driver.clone(),
         };
         match serde_json::to_string(&case) {
-            Ok(text) => println!("{text}"),
+            Ok(text) => out!("{text}"),
             Err(e) => log::error!("bench case {name}: {e}"),
         }
     }
@@ -66,12 +66,12 @@ impl Report {
     /// A case that could not run here, and why (e.g. a missing model).
     pub fn skipped(&self, name: &str, reason: &str) {
         if self.json {
-            println!(
+            out!(
                 "{}",
                 serde_json::json!({ "case": name, "skipped": reason, "driver": self.driver })
             );
         } else {
-            println!("{name}: skipped: {reason}");
+            out!("{name}: skipped: {reason}");
         }
     }
 }
