@@ -6,7 +6,7 @@
 // written here: its pipelines leave the colour target unwritten (so the
 // driver drops the shading as dead code), and untextured scenes run the
 // geometry entry points (vs_geometry, fs_geometry), which do not pass the
-// material's shading fields either (docs/performance.md).
+// material's shading fields either (docs/performance-history.md).
 
 #include "lib/types.wgsl"
 #include "lib/scene_bindings.wgsl"

@@ -276,7 +276,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     // branch or loop costs all 8 whenever one of them needs it. Each 8 is
     // laid out as a 4 x 2 block of pixels rather than a row of 8, so their
     // rays stay closer together and agree more often (TRACE_WORKGROUP / 4
-    // blocks a row; docs/performance.md has the figures).
+    // blocks a row; docs/performance-history.md has the figures).
     let group = li / 8u;
     let lane = li % 8u;
     let blocks_per_row = TRACE_WORKGROUP / 4u;

@@ -193,7 +193,7 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
 // cost a mask update and an any-lane check on every triangle; the tests
 // with non-short-circuit `&` and `|` (WGSL's `&&` and `||` branch) took
 // 4-7% off mesh ray batches and 2-3% off trace passes with meshes
-// (docs/performance.md, thirteenth session). Same arithmetic, same answers.
+// (docs/performance-history.md, thirteenth session). Same arithmetic, same answers.
 fn triangle_tuv(o: vec3<f32>, d: vec3<f32>, k: u32, t_min: f32, t_max: f32) -> vec4<f32> {
     let p0 = triangles[k].p0.xyz;
     let e1 = triangles[k].p1.xyz - p0;

@@ -26,7 +26,7 @@ fn is_toon(m: GpuMaterial) -> bool {
 // fragment shader's loop over the lights then unrolls, and each light runs
 // only its own kind's code. On the CPU driver the loop over
 // frame.light_count, a count the compiler does not know, cost about a
-// third of the default scene's raster pass (docs/performance.md).
+// third of the default scene's raster pass (docs/performance-history.md).
 // LIGHT_COUNT is LIGHTS_DYNAMIC (the default, and the trace kernel's) when
 // the count is left to frame.light_count; POINT_LIGHTS: bit i set when
 // light i is a point light.

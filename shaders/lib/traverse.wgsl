@@ -19,7 +19,7 @@ var<private> steps_left: u32;
 // The traversal stack: one per invocation, which its queries use in turn
 // (a mesh or CSG walk inside a top-level walk, above the top level's
 // entries). A private array in each query would be zero-filled at each of
-// its calls; this one is filled once per invocation (docs/performance.md).
+// its calls; this one is filled once per invocation (docs/performance-history.md).
 var<private> trace_stack: array<u32, TRAVERSAL_STACK>;
 // The triangle (index into `triangles`) of the closest hit `trace` last
 // returned, when that hit is on a triangle mesh (texture coordinates).

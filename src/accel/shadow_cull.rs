@@ -27,7 +27,7 @@
 //! rays that would have found nothing, so images do not change. Why it
 //! matters: on the CPU driver, 8 neighbouring pixels run as one SIMD
 //! program, and the traversal runs whenever one of them casts a ray; most
-//! of a lit floor's pixels now cast none (docs/performance.md).
+//! of a lit floor's pixels now cast none (docs/performance-history.md).
 
 use glam::{Vec2, Vec3, Vec4Swizzles};
 

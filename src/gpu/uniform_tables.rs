@@ -3,7 +3,7 @@
 //! lavapipe reads a storage-buffer word whose index differs between the 8
 //! lanes of its SIMD program in a loop over the lanes, two branches a word
 //! (the lane's mask, the buffer's bounds); a uniform-buffer read at the same
-//! indices is one branchless gather (docs/performance.md, fourteenth
+//! indices is one branchless gather (docs/performance-history.md, fourteenth
 //! session). So each table of the scene's group that fits in
 //! [`UNIFORM_TABLE_BYTES`] is also uploaded as a uniform buffer, and the
 //! pipelines read it there: bit [`Table::bit`] of the override constant

@@ -851,7 +851,7 @@ impl Renderer {
     /// `view_format`, one of the view formats `target` was created with.
     /// Resolving a non-sRGB texture through its sRGB twin lets the target
     /// encode as it stores rather than the shader: on the CPU driver that
-    /// saves about 2 ms of a 1280x720 resolve's 8 (docs/performance.md),
+    /// saves about 2 ms of a 1280x720 resolve's 8 (docs/performance-history.md),
     /// and the bytes are those a capture gets.
     pub fn resolve_into_as(
         &mut self,

@@ -274,7 +274,7 @@ impl RasterDraws {
     ///
     /// Drawn front to back, a fragment behind what is already drawn fails
     /// the depth test before the fragment shader runs; the shading is most
-    /// of the raster pass on the CPU driver (docs/performance.md). But the
+    /// of the raster pass on the CPU driver (docs/performance-history.md). But the
     /// image must stay the one the scene's order gives, in which, at exactly
     /// equal depth (an object standing on the floor, along the line where
     /// they meet; a mesh's silhouette, where its front and back meet), the
@@ -394,7 +394,7 @@ fn raster_pipelines(
     // untextured hybrid mode, those that neither shade nor pass the
     // material. Textured hybrid mode keeps the textured pair, its colour
     // unwritten: a geometry-only pair measured slower there
-    // (docs/performance.md).
+    // (docs/performance-history.md).
     let (vs, fs) = match (textures, variant.shade) {
         (false, true) => ("vs_main", "fs_main"),
         (true, _) => ("vs_textured", "fs_textured"),

@@ -142,7 +142,7 @@ impl RayBatch {
     /// the second dispatch is timed: the first submission also carries the
     /// rays' upload and the zero fill wgpu gives a new storage buffer (on
     /// lavapipe, with the first touch of its pages, 15-20 ms for 921,600
-    /// rays: docs/performance.md), which are not the traversal's cost.
+    /// rays: docs/performance-history.md), which are not the traversal's cost.
     pub fn trace_timed(
         &self,
         gpu: &Gpu,

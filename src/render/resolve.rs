@@ -25,7 +25,7 @@ pub struct ResolvePass {
     /// time): the tone map and the sRGB encoding are override constants,
     /// not uniforms, so the fragment shader holds only their code (a
     /// branch on a uniform costs the CPU driver about 2 ms of 6 here,
-    /// docs/performance.md).
+    /// docs/performance-history.md).
     pipelines: HashMap<ToneMap, wgpu::RenderPipeline>,
     /// The tone map of the current settings.
     tone_map: ToneMap,

@@ -262,7 +262,7 @@ pub const MAX_FIXED_LIGHTS: u32 = 8;
 /// constants `LIGHT_COUNT` and `POINT_LIGHTS` of lib/shading.wgsl): the
 /// light loops unroll and each light runs only its kind's code. On
 /// lavapipe this takes about a third off the default scene's raster pass
-/// and about a tenth off its trace pass (docs/performance.md). Adding,
+/// and about a tenth off its trace pass (docs/performance-history.md). Adding,
 /// removing or changing the kind of a light builds new pipelines (the app
 /// compiles them ahead, render::warmup).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

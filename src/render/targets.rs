@@ -34,7 +34,7 @@ pub use crate::gpu::twins::TRACED_ROW_ALIGN_PX;
 
 /// The trace pass's output, written as plain storage buffers (on lavapipe
 /// a storage-texture store costs several times a buffer store;
-/// docs/performance.md), rows [`TRACED_ROW_ALIGN_PX`]-aligned, each texel
+/// docs/performance-history.md), rows [`TRACED_ROW_ALIGN_PX`]-aligned, each texel
 /// in its texture's format. The outline marks and the accumulate pass read
 /// them as they are (`shaders/lib/gbuffer.wgsl`); the normal + depth and
 /// ids are copied into [`TracedTextures`] only where a texture is read.

@@ -1,7 +1,7 @@
 //! Compiling a change's pipelines before a view shows it. lavapipe compiles
 //! a pipeline the first time it runs, on its one queue thread: a first
 //! reflective material or a light's first shadows stopped the whole window
-//! for 5-11 s (docs/performance.md). The warmer renders one tiny sample of
+//! for 5-11 s (docs/performance-history.md). The warmer renders one tiny sample of
 //! the changed view on a second device of the same adapter, in a thread of
 //! its own, and resolves it as the window does, which fills the driver's
 //! shader cache; the view keeps its old image (the camera still moves it;
