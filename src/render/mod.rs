@@ -582,17 +582,7 @@ impl Renderer {
     /// draw's levels, 0 the finest ([`raster::draw_levels`]). Empty outside
     /// raster mode, where the pass draws only meshes, which have one level.
     pub fn raster_levels(&self, k: u32) -> Vec<usize> {
-        if self.settings.mode != RenderMode::Raster {
-            return Vec::new();
-        }
-        let smp = self.sample_schedule().sample(k);
-        let view = raster::LodView::new(
-            &self.scene.camera.at(smp.time),
-            &self.camera_for(&smp),
-            (self.settings.width, self.settings.height),
-        );
-        let time = self.buffers.has_motion.then_some(smp.time);
-        raster::draw_levels(&self.buffers, &self.scene, &view, time)
+        self.raster_draws(k).levels
     }
 
     /// What the raster pass draws for sample `k`: each draw's level
@@ -601,13 +591,23 @@ impl Renderer {
     /// ([`raster::draw_distances`]).
     pub fn raster_draws(&self, k: u32) -> raster::RasterDraws {
         let smp = self.sample_schedule().sample(k);
+        let camera = self.camera_for(&smp);
         let time = self.buffers.has_motion.then_some(smp.time);
-        let eye = self.camera_for(&smp).eye;
+        let levels = if self.settings.mode == RenderMode::Raster {
+            let view = raster::LodView::new(
+                &self.scene.camera.at(smp.time),
+                &camera,
+                (self.settings.width, self.settings.height),
+            );
+            raster::draw_levels(&self.buffers, &self.scene, &view, time)
+        } else {
+            Vec::new()
+        };
         let mode = self.primary_mode();
         raster::RasterDraws {
             mode,
-            levels: self.raster_levels(k),
-            distances: raster::draw_distances(&self.buffers, &self.scene, mode, eye, time),
+            levels,
+            distances: raster::draw_distances(&self.buffers, &self.scene, mode, camera.eye, time),
         }
     }
 
