@@ -77,7 +77,7 @@ proptest! {
             let o = Vec3::from(origin);
             let Some(d) = (Vec3::from(aim) - o).try_normalize() else { continue };
             let list = program.intervals(o, d).unwrap();
-            prop_assert!(list.len() % 2 == 0, "odd endpoint count {}", list.len());
+            prop_assert!(list.len().is_multiple_of(2), "odd endpoint count {}", list.len());
             for w in list.windows(2) {
                 prop_assert!(w[0].t <= w[1].t, "unsorted endpoints {list:?}");
             }

@@ -188,9 +188,10 @@ pub const TRACE_WORKGROUP: u32 = 8;
 /// (`render::targets::TracedOutput`): a copy into a texture needs rows
 /// 256-byte aligned, and 64 pixels of the narrowest texel (4 bytes) are 256.
 pub const TRACED_ROW_ALIGN_PX: u32 = 64;
-const _: () = assert!(TRACED_ROW_ALIGN_PX.is_power_of_two() && TRACED_ROW_ALIGN_PX * 4 % 256 == 0);
+const _: () =
+    assert!(TRACED_ROW_ALIGN_PX.is_power_of_two() && (TRACED_ROW_ALIGN_PX * 4).is_multiple_of(256));
 // The trace kernel lays its invocations out in 4 x 2 blocks (trace.wgsl).
-const _: () = assert!(TRACE_WORKGROUP % 4 == 0);
+const _: () = assert!(TRACE_WORKGROUP.is_multiple_of(4));
 /// Workgroup size of the ray-batch kernel used by tests.
 pub const RAY_BATCH_WORKGROUP: u32 = 64;
 

@@ -253,7 +253,7 @@ pub fn mip_chain(image: &Texture, size: u32) -> Vec<(u32, Vec<u8>)> {
     } else {
         let buffer = image::RgbaImage::from_raw(image.width, image.height, image.rgba8.clone())
             .unwrap_or_else(|| image::RgbaImage::new(1, 1));
-        let whole = size % image.width == 0 && size % image.height == 0;
+        let whole = size.is_multiple_of(image.width) && size.is_multiple_of(image.height);
         let filter = if whole {
             image::imageops::FilterType::Nearest
         } else {

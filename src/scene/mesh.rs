@@ -70,7 +70,7 @@ impl Mesh {
         if self.indices.is_empty() {
             return Err("mesh has no triangles".into());
         }
-        if self.indices.len() % 3 != 0 {
+        if !self.indices.len().is_multiple_of(3) {
             return Err(format!(
                 "mesh index count {} is not a multiple of 3",
                 self.indices.len()
