@@ -1,6 +1,16 @@
 // Accumulate pass: this sample's G-buffer colour, with toon outlines drawn
 // from depth, normal and id discontinuities, added to the float accumulator.
 // accum[p].w counts the samples, so resolve divides by it.
+//
+// Two kernels, dispatched one after the other in one compute pass:
+// `main` over every tile, which accumulates the pixels of the tiles no
+// outline can reach (shaders/outline_tiles.wgsl's marks, 0) and leaves the
+// others; and `outlined`, dispatched indirectly over the marked tiles
+// alone (the list outline_tiles.wgsl appends to), which loads the tile
+// and searches for outlines. On the CPU driver a kernel's code costs its
+// 8-lane groups even where none runs it: in one kernel, the search's
+// code cost the default scene's unmarked tiles about 2.5 ms of an
+// 11 ms pass (docs/performance-history.md, seventeenth session).
 
 #include "lib/types.wgsl"
 #include "lib/scene_bindings.wgsl"
@@ -12,11 +22,14 @@
 #include "lib/outline.wgsl"
 @group(1) @binding(4) var<storage, read_write> accum: array<vec4<f32>>;
 // From shaders/outline_tiles.wgsl, run just before: 1 where a pixel of
-// this workgroup's tile may take an outline (an outlined object in reach,
-// and the tile not provably the smooth inside of one object). Read-only
-// storage read at the workgroup's own index is uniform, so the tile load
-// and its barrier can sit under it.
+// the tile may take an outline (an outlined object in reach, and the tile
+// not provably the smooth inside of one object); `main` leaves those tiles
+// to `outlined`.
 @group(1) @binding(5) var<storage, read> tile_marks: array<u32>;
+// The marked tiles' indices (row by row numbering), in no particular
+// order: `outlined`'s workgroup k takes tile_list[k]. Written by
+// outline_tiles.wgsl, which also counts them into the indirect dispatch.
+@group(1) @binding(9) var<storage, read> tile_list: array<u32>;
 
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP;
 // MAX_OUTLINE_RADIUS (outlines wider than this many pixels are drawn this
@@ -193,46 +206,73 @@ fn pixel_needs_search(l: vec2<i32>, span: i32, r: i32) -> bool {
     return (bits & SOURCE_BIT) != 0u && (background || (bits & ROUGH_BIT) != 0u);
 }
 
-@compute @workgroup_size(ACCUMULATE_WORKGROUP, ACCUMULATE_WORKGROUP)
-fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
-    @builtin(local_invocation_id) lid: vec3<u32>,
-    @builtin(local_invocation_index) li: u32,
-    @builtin(workgroup_id) wg: vec3<u32>,
-) {
-    // Integer offsets within a disk of radius w have |dx|, |dy| <= floor(w).
-    let r = i32(floor(min(frame.max_outline_px, f32(MAX_OUTLINE_RADIUS))));
-    let span = i32(ACCUMULATE_WORKGROUP) + 2 * r;
-    let tiles_x = (frame.size_px.x + ACCUMULATE_WORKGROUP - 1u) / ACCUMULATE_WORKGROUP;
-    // Tiles that nothing can outline skip the tile, its barrier and the
-    // search (the whole workgroup agrees, so the CPU driver skips the code).
-    let outlined = r > 0 && tile_marks[wg.y * tiles_x + wg.x] != 0u;
-    var search = outlined;
-    if outlined {
-        load_tile(vec2<i32>(wg.xy * ACCUMULATE_WORKGROUP) - vec2<i32>(r), span, li);
-        workgroupBarrier();
-        // Wide outlines: only the pixels whose search could find something
-        // search (the CPU driver skips it for 8 neighbours that all agree).
-        if r >= PIXEL_PROOF_MIN_RADIUS {
-            mark_texels(span, r, li);
-            workgroupBarrier();
-            or_rows(span, r, li);
-            workgroupBarrier();
-            search = pixel_needs_search(vec2<i32>(lid.xy), span, r);
-        }
-    }
-    if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
-        return;
-    }
-    var c = gbuffer_color(vec2<i32>(gid.xy));
-    if search {
-        let o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
-        c = mix(c, o.rgb, o.a);
-    }
-    let i = gid.y * frame.size_px.x + gid.x;
+// The outline radius the search uses: integer offsets within a disk of
+// radius w have |dx|, |dy| <= floor(w).
+fn outline_radius() -> i32 {
+    return i32(floor(min(frame.max_outline_px, f32(MAX_OUTLINE_RADIUS))));
+}
+
+// Adds colour c to pixel p's sum (or starts it on the first sample).
+fn accumulate(p: vec2<u32>, c: vec3<f32>) {
+    let i = p.y * frame.size_px.x + p.x;
     if frame.sample_index == 0u {
         accum[i] = vec4<f32>(c, 1.0);
     } else {
         accum[i] += vec4<f32>(c, 1.0);
     }
+}
+
+// Every tile: the pixels of tiles no outline can reach (all of them when
+// the scene has no outline 1 px or wider: r = 0, and no marks were made).
+@compute @workgroup_size(ACCUMULATE_WORKGROUP, ACCUMULATE_WORKGROUP)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(workgroup_id) wg: vec3<u32>,
+) {
+    let tiles_x = (frame.size_px.x + ACCUMULATE_WORKGROUP - 1u) / ACCUMULATE_WORKGROUP;
+    // The whole workgroup agrees, so the CPU driver skips the rest at once.
+    if outline_radius() > 0 && tile_marks[wg.y * tiles_x + wg.x] != 0u {
+        return;
+    }
+    if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
+        return;
+    }
+    accumulate(gid.xy, gbuffer_color(vec2<i32>(gid.xy)));
+}
+
+// The marked tiles, one workgroup each: the tile and its halo loaded into
+// workgroup memory, then each pixel's outline search.
+@compute @workgroup_size(ACCUMULATE_WORKGROUP, ACCUMULATE_WORKGROUP)
+fn outlined(
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+) {
+    let r = outline_radius();
+    let span = i32(ACCUMULATE_WORKGROUP) + 2 * r;
+    let tiles_x = (frame.size_px.x + ACCUMULATE_WORKGROUP - 1u) / ACCUMULATE_WORKGROUP;
+    let tile = tile_list[wg.x];
+    let origin = vec2<u32>(tile % tiles_x, tile / tiles_x) * ACCUMULATE_WORKGROUP;
+    let gid = origin + lid.xy;
+    load_tile(vec2<i32>(origin) - vec2<i32>(r), span, li);
+    workgroupBarrier();
+    // Wide outlines: only the pixels whose search could find something
+    // search (the CPU driver skips it for 8 neighbours that all agree).
+    var search = true;
+    if r >= PIXEL_PROOF_MIN_RADIUS {
+        mark_texels(span, r, li);
+        workgroupBarrier();
+        or_rows(span, r, li);
+        workgroupBarrier();
+        search = pixel_needs_search(vec2<i32>(lid.xy), span, r);
+    }
+    if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
+        return;
+    }
+    var c = gbuffer_color(vec2<i32>(gid));
+    if search {
+        let o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
+        c = mix(c, o.rgb, o.a);
+    }
+    accumulate(gid, c);
 }

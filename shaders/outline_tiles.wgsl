@@ -1,8 +1,10 @@
 // Outline tiles: before the accumulate pass, one invocation per accumulate
 // workgroup tile decides whether any pixel of the tile can take an outline,
-// and writes 1 (search) or 0 (skip). The accumulate pass reads the mark
-// once per workgroup and skips loading the tile, its barrier and the
-// search where it is 0. One invocation walks a whole tile, so this kernel
+// and writes 1 (search) or 0 (skip); each marked tile's index is also
+// appended to `tile_list`, counted in the x workgroup count of
+// `outline_dispatch` (zeroed before this pass), so the accumulate pass's
+// `outlined` kernel runs one workgroup per marked tile and its `main`
+// kernel skips them. One invocation walks a whole tile, so this kernel
 // needs no workgroup memory and no barrier (on the CPU driver a barrier
 // costs about as much as the loads it orders).
 //
@@ -41,6 +43,11 @@
 // One word per accumulate workgroup, row by row: 1 where the tile may
 // take an outline.
 @group(1) @binding(4) var<storage, read_write> tile_marks: array<u32>;
+// The accumulate pass's indirect dispatch of `outlined`: workgroup counts
+// x, y, z (y and z stay 1); x counts the marked tiles.
+@group(1) @binding(5) var<storage, read_write> outline_dispatch: array<atomic<u32>, 3>;
+// The marked tiles' indices, the first x of them written, in no order.
+@group(1) @binding(9) var<storage, read_write> tile_list: array<u32>;
 
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP (the tile's
 // side), MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP and DEPTH_JUMP.
@@ -114,5 +121,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             break;
         }
     }
-    tile_marks[gid.x] = select(0u, 1u, any_source && !quiet);
+    let marked = any_source && !quiet;
+    tile_marks[gid.x] = select(0u, 1u, marked);
+    if marked {
+        tile_list[atomicAdd(&outline_dispatch[0], 1u)] = gid.x;
+    }
 }

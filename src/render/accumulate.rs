@@ -1,12 +1,18 @@
 //! Pass 3: add this sample's colour (with outlines) to the accumulator.
 //! Group 0 is the scene's shared group (instances and materials give each
 //! pixel's outline); group 1 is [`PASS_LAYOUT`] (frame uniforms, one
-//! G-buffer, the accumulator, the tile marks). When the scene has
+//! G-buffer, the accumulator, the tile marks and list). When the scene has
 //! outlines, a first dispatch (`shaders/outline_tiles.wgsl`, group 1
 //! [`TILES_LAYOUT`], in a compute pass and timer span of its own,
 //! "outline_tiles") marks the workgroup tiles where some pixel may take
 //! an outline (an outlined object in reach that is not provably the smooth
-//! inside of one object), and the accumulate kernel searches only those.
+//! inside of one object) and lists them, counting them into an indirect
+//! dispatch. The accumulate pass is then two kernels in one compute pass
+//! (timer span "accumulate"): `main` over every tile, which leaves the
+//! marked ones, and `outlined`, one workgroup per listed tile, which
+//! searches for outlines there. Apart, the search's code costs nothing to
+//! the tiles that do not run it (docs/performance-history.md, seventeenth
+//! session).
 //! Both read the G-buffer through `shaders/lib/gbuffer.wgsl`: one pipeline
 //! each for the raster pass's textures and one for the trace pass's buffers
 //! (override constant `TRACED_GBUFFER`), so the trace pass's output is read
@@ -19,12 +25,13 @@ use crate::gpu::twins::{ACCUMULATE_WORKGROUP, OUTLINE_TILES_WORKGROUP};
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
 use crate::render::targets::Targets;
+use wgpu::util::DeviceExt;
 
 const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
 
 /// Group 1 of the accumulate pass, binding by binding as
 /// `shaders/accumulate.wgsl` declares it.
-pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 9] = [
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     texture_entry(1, FLOAT),                       // color_tex
     texture_entry(2, FLOAT),                       // normal_depth_tex
@@ -34,25 +41,34 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 9] = [
     read_only_storage_entry(6, wgpu::ShaderStages::COMPUTE), // traced_color
     read_only_storage_entry(7, wgpu::ShaderStages::COMPUTE), // traced_normal_depth
     read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // traced_id
+    read_only_storage_entry(9, wgpu::ShaderStages::COMPUTE), // tile_list
 ];
 
 /// Group 1 of the tile-marking dispatch, binding by binding as
 /// `shaders/outline_tiles.wgsl` declares it.
 /// It holds the whole G-buffer of lib/gbuffer.wgsl, the colour unread.
-pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 8] = [
+pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     texture_entry(1, FLOAT),                       // color_tex
     texture_entry(2, FLOAT),                       // normal_depth_tex
     texture_entry(3, wgpu::TextureSampleType::Uint), // id_tex
     read_write_storage_entry(4),                   // tile_marks
+    read_write_storage_entry(5),                   // outline_dispatch
     read_only_storage_entry(6, wgpu::ShaderStages::COMPUTE), // traced_color
     read_only_storage_entry(7, wgpu::ShaderStages::COMPUTE), // traced_normal_depth
     read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // traced_id
+    read_write_storage_entry(9),                   // tile_list
 ];
 
+/// The indirect dispatch of the `outlined` kernel before the marks count
+/// the tiles: x = 0 workgroups (the marks add one per marked tile), y = z = 1.
+const OUTLINE_DISPATCH_START: [u32; 3] = [0, 1, 1];
+
 pub struct AccumulatePass {
-    /// Reading the raster G-buffer, then the traced one.
+    /// The `main` kernel reading the raster G-buffer, then the traced one.
     pipelines: [wgpu::ComputePipeline; 2],
+    /// The `outlined` kernel, the same way.
+    outline_pipelines: [wgpu::ComputePipeline; 2],
     layout: wgpu::BindGroupLayout,
     tiles_pipelines: [wgpu::ComputePipeline; 2],
     tiles_layout: wgpu::BindGroupLayout,
@@ -65,6 +81,10 @@ pub struct AccumulatePass {
     /// One word per tile: 1 where the accumulate kernel searched for
     /// outlines in the last sample (when the scene has outlines).
     marks: Option<wgpu::Buffer>,
+    /// The marked tiles' indices, and the `outlined` kernel's indirect
+    /// dispatch (its x counts them).
+    tile_list: Option<wgpu::Buffer>,
+    outline_dispatch: Option<wgpu::Buffer>,
 }
 
 /// The number of accumulate workgroups (tiles) of a target, across and down.
@@ -81,7 +101,8 @@ impl AccumulatePass {
         let tiles_module = shader::create_module(gpu, "outline_tiles.wgsl")?;
         gpu.scoped(|| {
             let scene_layout = scene_layout(gpu);
-            let kernel = |name: &str, entries: &[wgpu::BindGroupLayoutEntry], module| {
+            // A kernel's group 1 layout and its pipeline layout.
+            let layouts = |name: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
                 let layout =
                     gpu.device
                         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -95,36 +116,50 @@ impl AccumulatePass {
                             bind_group_layouts: &[Some(&scene_layout), Some(&layout)],
                             immediate_size: 0,
                         });
-                let pipeline = |traced: bool| {
-                    gpu.device
-                        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                            label: Some(&format!(
-                                "{name} pipeline ({} G-buffer)",
-                                if traced { "traced" } else { "raster" }
-                            )),
-                            layout: Some(&pipeline_layout),
-                            module,
-                            entry_point: Some("main"),
-                            // The accumulate kernel writes every texel of
-                            // its workgroup tile before its barrier and reads
-                            // only those (load_tile, outline_at): zeroing the
-                            // tile first would cost every workgroup a pass
-                            // over it and a barrier, marked or not. (The
-                            // outline marks have no workgroup memory.)
-                            compilation_options: wgpu::PipelineCompilationOptions {
-                                constants: &[("TRACED_GBUFFER", f64::from(u8::from(traced)))],
-                                zero_initialize_workgroup_memory: false,
-                            },
-                            cache: None,
-                        })
-                };
-                ([pipeline(false), pipeline(true)], layout)
+                (layout, pipeline_layout)
             };
-            let (pipelines, layout) = kernel("accumulate", &PASS_LAYOUT, &module);
-            let (tiles_pipelines, tiles_layout) =
-                kernel("outline tiles", &TILES_LAYOUT, &tiles_module);
+            // Entry point `entry` of `module`, reading the raster G-buffer,
+            // then the traced one.
+            let pipelines =
+                |name: &str, pipeline_layout: &wgpu::PipelineLayout, module, entry: &str| {
+                    [false, true].map(|traced| {
+                        gpu.device
+                            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                                label: Some(&format!(
+                                    "{name} pipeline, {entry} ({} G-buffer)",
+                                    if traced { "traced" } else { "raster" }
+                                )),
+                                layout: Some(pipeline_layout),
+                                module,
+                                entry_point: Some(entry),
+                                // The `outlined` kernel writes every texel of
+                                // its workgroup tile before its barrier and reads
+                                // only those (load_tile, outline_at): zeroing the
+                                // tile first would cost every workgroup a pass
+                                // over it and a barrier. (The other kernels have
+                                // no workgroup memory.)
+                                compilation_options: wgpu::PipelineCompilationOptions {
+                                    constants: &[("TRACED_GBUFFER", f64::from(u8::from(traced)))],
+                                    zero_initialize_workgroup_memory: false,
+                                },
+                                cache: None,
+                            })
+                    })
+                };
+            let (layout, accumulate_layout) = layouts("accumulate", &PASS_LAYOUT);
+            let (tiles_layout, tiles_pipeline_layout) = layouts("outline tiles", &TILES_LAYOUT);
+            let outline_pipelines =
+                pipelines("accumulate", &accumulate_layout, &module, "outlined");
+            let tiles_pipelines = pipelines(
+                "outline tiles",
+                &tiles_pipeline_layout,
+                &tiles_module,
+                "main",
+            );
+            let pipelines = pipelines("accumulate", &accumulate_layout, &module, "main");
             AccumulatePass {
                 pipelines,
+                outline_pipelines,
                 layout,
                 tiles_pipelines,
                 tiles_layout,
@@ -132,13 +167,15 @@ impl AccumulatePass {
                 bind_group: None,
                 tiles_group: None,
                 marks: None,
+                tile_list: None,
+                outline_dispatch: None,
             }
         })
     }
 
     /// Bind groups holding the raster G-buffer (raster mode) and the
-    /// traced one (hybrid and raytrace modes), with the tile marks sized
-    /// to the targets.
+    /// traced one (hybrid and raytrace modes), with the tile marks and
+    /// list sized to the targets.
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
@@ -153,6 +190,21 @@ impl AccumulatePass {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        let tile_list = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("outline tile list"),
+            size: u64::from(tiles_x * tiles_y) * 4,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let outline_dispatch = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("outline dispatch"),
+                contents: bytemuck::cast_slice(&OUTLINE_DISPATCH_START),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::INDIRECT
+                    | wgpu::BufferUsages::COPY_DST,
+            });
         let group = |label, layout, entries: &[(u32, wgpu::BindingResource)]| {
             let entries: Vec<_> = entries
                 .iter()
@@ -194,6 +246,7 @@ impl AccumulatePass {
                 &[
                     (4, targets.accum.as_entire_binding()),
                     (5, marks.as_entire_binding()),
+                    (9, tile_list.as_entire_binding()),
                 ],
             ]
             .concat(),
@@ -201,9 +254,19 @@ impl AccumulatePass {
         self.tiles_group = Some(group(
             "outline tiles bind group",
             &self.tiles_layout,
-            &[&shared[..], &[(4, marks.as_entire_binding())]].concat(),
+            &[
+                &shared[..],
+                &[
+                    (4, marks.as_entire_binding()),
+                    (5, outline_dispatch.as_entire_binding()),
+                    (9, tile_list.as_entire_binding()),
+                ],
+            ]
+            .concat(),
         ));
         self.marks = Some(marks);
+        self.tile_list = Some(tile_list);
+        self.outline_dispatch = Some(outline_dispatch);
     }
 
     /// The tile marks of the last sample, one per accumulate tile, row by
@@ -218,10 +281,10 @@ impl AccumulatePass {
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
-    /// The tile marks (`shaders/outline_tiles.wgsl`), in a compute pass of
-    /// their own (its own timer span, "outline_tiles"). Encode it before
-    /// [`AccumulatePass::encode`] where the scene has outlines (some
-    /// material's outline is at least 1 px wide).
+    /// The tile marks and list (`shaders/outline_tiles.wgsl`), in a
+    /// compute pass of their own (its own timer span, "outline_tiles").
+    /// Encode it before [`AccumulatePass::encode`] where the scene has
+    /// outlines (some material's outline is at least 1 px wide).
     pub fn encode_tiles(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -229,55 +292,51 @@ impl AccumulatePass {
         traced: bool,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
+        // The list starts empty: x = 0 workgroups (y and z stay 1).
+        if let Some(dispatch) = &self.outline_dispatch {
+            encoder.clear_buffer(dispatch, 0, Some(4));
+        }
         let (tiles_x, tiles_y) = tiles(targets);
-        self.dispatch(
-            encoder,
-            "outline tiles pass",
-            &self.tiles_pipelines[usize::from(traced)],
-            self.tiles_group.as_ref(),
-            ((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1),
-            timestamp_writes,
-        );
+        let mut pass = self.begin(encoder, "outline tiles pass", timestamp_writes);
+        pass.set_pipeline(&self.tiles_pipelines[usize::from(traced)]);
+        pass.set_bind_group(PASS_GROUP, self.tiles_group.as_ref(), &[]);
+        pass.dispatch_workgroups((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1, 1);
     }
 
-    /// The accumulation, with the outline search where the scene has
-    /// outlines (it reads the marks [`AccumulatePass::encode_tiles`] wrote
-    /// this sample).
+    /// The accumulation: `main` over every tile, then, where the scene has
+    /// `outlines` (and [`AccumulatePass::encode_tiles`] listed this
+    /// sample's marked tiles), `outlined` over the listed tiles.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
         traced: bool,
+        outlines: bool,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        self.dispatch(
-            encoder,
-            "accumulate pass",
-            &self.pipelines[usize::from(traced)],
-            self.bind_group.as_ref(),
-            tiles(targets),
-            timestamp_writes,
-        );
+        let (tiles_x, tiles_y) = tiles(targets);
+        let mut pass = self.begin(encoder, "accumulate pass", timestamp_writes);
+        pass.set_pipeline(&self.pipelines[usize::from(traced)]);
+        pass.set_bind_group(PASS_GROUP, self.bind_group.as_ref(), &[]);
+        pass.dispatch_workgroups(tiles_x, tiles_y, 1);
+        if let (true, Some(dispatch)) = (outlines, &self.outline_dispatch) {
+            pass.set_pipeline(&self.outline_pipelines[usize::from(traced)]);
+            pass.dispatch_workgroups_indirect(dispatch, 0);
+        }
     }
 
-    /// One compute pass of one dispatch, with the scene as group 0 and
-    /// `group` as group 1.
-    fn dispatch(
+    /// A compute pass with the scene bound as group 0.
+    fn begin<'e>(
         &self,
-        encoder: &mut wgpu::CommandEncoder,
+        encoder: &'e mut wgpu::CommandEncoder,
         label: &str,
-        pipeline: &wgpu::ComputePipeline,
-        group: Option<&wgpu::BindGroup>,
-        (x, y): (u32, u32),
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
-    ) {
+    ) -> wgpu::ComputePass<'e> {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(label),
             timestamp_writes,
         });
         pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(PASS_GROUP, group, &[]);
-        pass.dispatch_workgroups(x, y, 1);
+        pass
     }
 }

@@ -743,6 +743,7 @@ impl Renderer {
             &mut encoder,
             &self.targets,
             traced,
+            outlines,
             timer
                 .as_mut()
                 .and_then(|t| t.timer.compute_writes(t.accumulate)),
