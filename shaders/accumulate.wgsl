@@ -7,7 +7,9 @@
 // outline can reach (shaders/outline_tiles.wgsl's marks, 0) and leaves the
 // others; and `outlined`, dispatched indirectly over the marked tiles
 // alone (the list outline_tiles.wgsl appends to), which loads the tile
-// and searches for outlines. On the CPU driver a kernel's code costs its
+// and searches for outlines (where an image has more tiles than one
+// dispatch may count, over every tile instead, the unmarked ones stopping
+// at once). On the CPU driver a kernel's code costs its
 // 8-lane groups even where none runs it: in one kernel, the search's
 // code cost the default scene's unmarked tiles about 2.5 ms of an
 // 11 ms pass (docs/performance-history.md, seventeenth session).
@@ -30,6 +32,13 @@
 // order: `outlined`'s workgroup k takes tile_list[k]. Written by
 // outline_tiles.wgsl, which also counts them into the indirect dispatch.
 @group(1) @binding(9) var<storage, read> tile_list: array<u32>;
+// `outlined`'s indirect dispatch (x, y, z workgroups) and, in word 3, how
+// it finds its tile: OUTLINE_TILES_LISTED, workgroup k takes tile_list[k];
+// else the dispatch is every tile's workgroup, and the unmarked ones stop at
+// once (images with more tiles than one dispatch's x may count, about
+// 4096 x 4096 pixels: src/render/accumulate.rs).
+@group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, 4>;
+const OUTLINE_TILES_LISTED: u32 = 1u;
 
 // From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP;
 // MAX_OUTLINE_RADIUS (outlines wider than this many pixels are drawn this
@@ -251,7 +260,15 @@ fn outlined(
     let r = outline_radius();
     let span = i32(ACCUMULATE_WORKGROUP) + 2 * r;
     let tiles_x = (frame.size_px.x + ACCUMULATE_WORKGROUP - 1u) / ACCUMULATE_WORKGROUP;
-    let tile = tile_list[wg.x];
+    var tile: u32;
+    if outline_dispatch[3] == OUTLINE_TILES_LISTED {
+        tile = tile_list[wg.x];
+    } else {
+        tile = wg.y * tiles_x + wg.x;
+        if tile_marks[tile] == 0u {
+            return;
+        }
+    }
     let origin = vec2<u32>(tile % tiles_x, tile / tiles_x) * ACCUMULATE_WORKGROUP;
     let gid = origin + lid.xy;
     load_tile(vec2<i32>(origin) - vec2<i32>(r), span, li);

@@ -44,8 +44,9 @@
 // take an outline.
 @group(1) @binding(4) var<storage, read_write> tile_marks: array<u32>;
 // The accumulate pass's indirect dispatch of `outlined`: workgroup counts
-// x, y, z (y and z stay 1); x counts the marked tiles.
-@group(1) @binding(5) var<storage, read_write> outline_dispatch: array<atomic<u32>, 3>;
+// x, y, z (y and z stay 1); x counts the marked tiles. (Word 3 is the
+// accumulate pass's: whether it reads the list.)
+@group(1) @binding(5) var<storage, read_write> outline_dispatch: array<atomic<u32>, 4>;
 // The marked tiles' indices, the first x of them written, in no order.
 @group(1) @binding(9) var<storage, read_write> tile_list: array<u32>;
 

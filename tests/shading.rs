@@ -553,17 +553,7 @@ fn outlines_inside_one_object_follow_the_rule() {
 fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
     let gpu = gpu();
     let (w, h, tile, halo) = (384u32, 288u32, 16u32, 3i64);
-    let ron = format!(
-        r#"(version: 1,
-            camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 20.0, width: {w}, height: {h}),
-            ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
-            lights: [Directional(direction: (-0.5, -0.5, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
-            materials: {{ "m": (base_color: (0.2, 0.8, 0.2), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 3),
-                           outline_color: (1.0, 0.0, 1.0), outline_width_px: 3.0) }},
-            shapes: {{ "ball": Sphere(radius: 1.0) }},
-            instances: [(shape: "ball", material: "m")],
-        )"#
-    );
+    let ron = outlined_sphere(w, h);
     for mode in [RenderMode::Raster, RenderMode::Raytrace] {
         let OutlineCheck {
             renderer: r,
@@ -610,6 +600,50 @@ fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
         assert!(
             quiet >= 4 && silhouette >= 20,
             "{}: {quiet} quiet, {silhouette} silhouette tiles",
+            mode.name()
+        );
+    }
+}
+
+/// A sphere filling the middle of a `w` x `h` view, with 3 px magenta
+/// outlines, on a black background.
+fn outlined_sphere(w: u32, h: u32) -> String {
+    format!(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 20.0, width: {w}, height: {h}),
+            ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+            lights: [Directional(direction: (-0.5, -0.5, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: {{ "m": (base_color: (0.2, 0.8, 0.2), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 3),
+                           outline_color: (1.0, 0.0, 1.0), outline_width_px: 3.0) }},
+            shapes: {{ "ball": Sphere(radius: 1.0) }},
+            instances: [(shape: "ball", material: "m")],
+        )"#
+    )
+}
+
+/// The accumulate pass searches for outlines in a kernel of its own, over
+/// the list of marked tiles (one indirect dispatch); where an image has
+/// more tiles than one dispatch can count (over about 4096 x 4096 pixels
+/// on most devices) it runs over every tile instead, the unmarked ones
+/// stopping at once. Both must follow the outline rule and give the same
+/// bytes: a tile left to neither kernel would stay unwritten (black where
+/// the rule wants magenta or the sphere), and one taken by both would
+/// count two samples where the accumulator's count says one (the resolve
+/// would show their mean).
+#[test]
+fn outlines_are_the_same_over_the_tile_list_and_over_every_tile() {
+    let gpu = gpu();
+    let ron = outlined_sphere(384, 288);
+    for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+        let mut images = Vec::new();
+        for listed in [true, false] {
+            gpu.set_outline_tile_list(listed);
+            let check = assert_outlines_follow_the_rule(&gpu, &ron, mode);
+            images.push(check.renderer.read_srgb8(&gpu).unwrap());
+        }
+        assert!(
+            images[0] == images[1],
+            "{}: the dispatch over every tile gives another image than the tile list",
             mode.name()
         );
     }

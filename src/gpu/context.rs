@@ -100,6 +100,10 @@ pub struct Gpu {
     /// uniform copies (gpu::uniform_tables); tests and benchmarks turn it
     /// off to compare with the storage reads.
     uniform_tables: AtomicBool,
+    /// Whether renderers prepared from now on search for outlines over the
+    /// listed marked tiles (`render::accumulate`); tests turn it off to
+    /// check the dispatch over every tile against it.
+    outline_tile_list: AtomicBool,
 }
 
 const INSTALL_HINT: &str = "no GPU adapter found. celray needs a Vulkan driver; \
@@ -246,6 +250,7 @@ impl Gpu {
             uncaptured,
             shader_overrides: Mutex::new(None),
             uniform_tables: AtomicBool::new(true),
+            outline_tile_list: AtomicBool::new(true),
         })
     }
 
@@ -258,6 +263,19 @@ impl Gpu {
 
     pub fn uniform_tables(&self) -> bool {
         self.uniform_tables.load(Ordering::Relaxed)
+    }
+
+    /// Whether renderers prepared from now on run the outline search over
+    /// the list of marked tiles, one indirect dispatch (on by default;
+    /// off: a dispatch over every tile, the unmarked ones stopping at once,
+    /// as images with more tiles than a dispatch can count always do; the
+    /// same images, for tests and benchmarks).
+    pub fn set_outline_tile_list(&self, on: bool) {
+        self.outline_tile_list.store(on, Ordering::Relaxed);
+    }
+
+    pub fn outline_tile_list(&self) -> bool {
+        self.outline_tile_list.load(Ordering::Relaxed)
     }
 
     /// Whether this device has wgpu's ray queries enabled (the driver

@@ -10,7 +10,8 @@
 //! dispatch. The accumulate pass is then two kernels in one compute pass
 //! (timer span "accumulate"): `main` over every tile, which leaves the
 //! marked ones, and `outlined`, one workgroup per listed tile, which
-//! searches for outlines there. Apart, the search's code costs nothing to
+//! searches for outlines there (over every tile, the unmarked ones
+//! stopping at once, where there are more tiles than a dispatch may count). Apart, the search's code costs nothing to
 //! the tiles that do not run it (docs/performance-history.md, seventeenth
 //! session).
 //! Both read the G-buffer through `shaders/lib/gbuffer.wgsl`: one pipeline
@@ -31,7 +32,7 @@ const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterab
 
 /// Group 1 of the accumulate pass, binding by binding as
 /// `shaders/accumulate.wgsl` declares it.
-pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 11] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     texture_entry(1, FLOAT),                       // color_tex
     texture_entry(2, FLOAT),                       // normal_depth_tex
@@ -42,6 +43,7 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
     read_only_storage_entry(7, wgpu::ShaderStages::COMPUTE), // traced_normal_depth
     read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // traced_id
     read_only_storage_entry(9, wgpu::ShaderStages::COMPUTE), // tile_list
+    read_only_storage_entry(10, wgpu::ShaderStages::COMPUTE), // outline_dispatch
 ];
 
 /// Group 1 of the tile-marking dispatch, binding by binding as
@@ -60,9 +62,9 @@ pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
     read_write_storage_entry(9),                   // tile_list
 ];
 
-/// The indirect dispatch of the `outlined` kernel before the marks count
-/// the tiles: x = 0 workgroups (the marks add one per marked tile), y = z = 1.
-const OUTLINE_DISPATCH_START: [u32; 3] = [0, 1, 1];
+/// Word 3 of the outline dispatch buffer where the `outlined` kernel reads
+/// its tiles from the list (`shaders/accumulate.wgsl`).
+const OUTLINE_TILES_LISTED: u32 = 1;
 
 pub struct AccumulatePass {
     /// The `main` kernel reading the raster G-buffer, then the traced one.
@@ -82,9 +84,13 @@ pub struct AccumulatePass {
     /// outlines in the last sample (when the scene has outlines).
     marks: Option<wgpu::Buffer>,
     /// The marked tiles' indices, and the `outlined` kernel's indirect
-    /// dispatch (its x counts them).
+    /// dispatch (its x counts them; word 3 says whether it is used).
     tile_list: Option<wgpu::Buffer>,
     outline_dispatch: Option<wgpu::Buffer>,
+    /// Whether `outlined` runs over the listed tiles (indirectly), else
+    /// over every tile: an image may have more tiles than one dispatch can
+    /// count in x (65,535 on most devices: about 4096 x 4096 pixels).
+    listed: bool,
 }
 
 /// The number of accumulate workgroups (tiles) of a target, across and down.
@@ -169,6 +175,7 @@ impl AccumulatePass {
                 marks: None,
                 tile_list: None,
                 outline_dispatch: None,
+                listed: true,
             }
         })
     }
@@ -196,11 +203,16 @@ impl AccumulatePass {
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
+        // The marks count the listed tiles in x (zeroed before they run);
+        // y = z = 1.
+        self.listed = gpu.outline_tile_list()
+            && tiles_x * tiles_y <= gpu.device.limits().max_compute_workgroups_per_dimension;
+        let start = [0, 1, 1, if self.listed { OUTLINE_TILES_LISTED } else { 0 }];
         let outline_dispatch = gpu
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("outline dispatch"),
-                contents: bytemuck::cast_slice(&OUTLINE_DISPATCH_START),
+                contents: bytemuck::cast_slice(&start),
                 usage: wgpu::BufferUsages::STORAGE
                     | wgpu::BufferUsages::INDIRECT
                     | wgpu::BufferUsages::COPY_DST,
@@ -247,6 +259,7 @@ impl AccumulatePass {
                     (4, targets.accum.as_entire_binding()),
                     (5, marks.as_entire_binding()),
                     (9, tile_list.as_entire_binding()),
+                    (10, outline_dispatch.as_entire_binding()),
                 ],
             ]
             .concat(),
@@ -304,8 +317,9 @@ impl AccumulatePass {
     }
 
     /// The accumulation: `main` over every tile, then, where the scene has
-    /// `outlines` (and [`AccumulatePass::encode_tiles`] listed this
-    /// sample's marked tiles), `outlined` over the listed tiles.
+    /// `outlines` (and [`AccumulatePass::encode_tiles`] marked and listed
+    /// this sample's tiles), `outlined` over the listed tiles (over every
+    /// tile where there are too many to list).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -321,7 +335,11 @@ impl AccumulatePass {
         pass.dispatch_workgroups(tiles_x, tiles_y, 1);
         if let (true, Some(dispatch)) = (outlines, &self.outline_dispatch) {
             pass.set_pipeline(&self.outline_pipelines[usize::from(traced)]);
-            pass.dispatch_workgroups_indirect(dispatch, 0);
+            if self.listed {
+                pass.dispatch_workgroups_indirect(dispatch, 0);
+            } else {
+                pass.dispatch_workgroups(tiles_x, tiles_y, 1);
+            }
         }
     }
 
