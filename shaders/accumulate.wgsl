@@ -9,10 +9,10 @@
 // alone (the list outline_tiles.wgsl appends to), which loads the tile
 // and searches for outlines (where an image has more tiles than one
 // dispatch may count, over every tile instead, the unmarked ones stopping
-// at once). On the CPU driver a kernel's code costs its
-// 8-lane groups even where none runs it: in one kernel, the search's
-// code cost the default scene's unmarked tiles about 2.5 ms of an
-// 11 ms pass (docs/performance-history.md, seventeenth session).
+// at once). On the CPU driver a kernel's code costs its 8-lane groups
+// even where none runs it: in one kernel, the search's code cost the
+// default scene's unmarked tiles about 2.5 ms of an 11 ms pass
+// (docs/performance-history.md, seventeenth session).
 
 #include "lib/types.wgsl"
 #include "lib/scene_bindings.wgsl"
