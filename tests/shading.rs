@@ -628,8 +628,8 @@ fn outlined_sphere(w: u32, h: u32) -> String {
 /// stopping at once. Both must follow the outline rule and give the same
 /// bytes: a tile left to neither kernel would stay unwritten (black where
 /// the rule wants magenta or the sphere), and one taken by both would
-/// count two samples where the accumulator's count says one (the resolve
-/// would show their mean).
+/// sum its colour twice, with and without the outline (the resolve would
+/// show their mean where the rule wants magenta).
 #[test]
 fn outlines_are_the_same_over_the_tile_list_and_over_every_tile() {
     let gpu = gpu();
