@@ -625,28 +625,61 @@ fn outlined_sphere(w: u32, h: u32) -> String {
 /// the list of marked tiles (one indirect dispatch); where an image has
 /// more tiles than one dispatch can count (over about 4096 x 4096 pixels
 /// on most devices) it runs over every tile instead, the unmarked ones
-/// stopping at once. Both must follow the outline rule and give the same
-/// bytes: a tile left to neither kernel would stay unwritten (black where
-/// the rule wants magenta or the sphere), and one taken by both would
-/// sum its colour twice, with and without the outline (the resolve would
-/// show their mean where the rule wants magenta).
+/// stopping at once, and `main` takes every unmarked tile. So each pixel
+/// must be summed by exactly one of the two kernels each sample: after 3
+/// samples, every pixel's count (the accumulator's w) is exactly 3 on
+/// both paths (a pixel left to neither holds 0, one taken by both 5), and
+/// both paths hold the same sums, bit for bit. The image is 390 x 290, so
+/// the last column and row of tiles are partial. At one sample per pixel
+/// centre, both paths also follow the outline rule.
 #[test]
-fn outlines_are_the_same_over_the_tile_list_and_over_every_tile() {
+fn each_pixel_is_summed_once_over_the_tile_list_and_over_every_tile() {
     let gpu = gpu();
-    let ron = outlined_sphere(384, 288);
+    let ron = outlined_sphere(390, 290);
     for mode in [RenderMode::Raster, RenderMode::Raytrace] {
-        let mut images = Vec::new();
+        let mut sums = Vec::new();
         for listed in [true, false] {
             gpu.set_outline_tile_list(listed);
             let check = assert_outlines_follow_the_rule(&gpu, &ron, mode);
-            images.push(check.renderer.read_srgb8(&gpu).unwrap());
+            assert_eq!(
+                check.renderer.outline_search_listed(),
+                listed,
+                "{}",
+                mode.name()
+            );
+            let scene = scene(&ron);
+            let settings = RenderSettings {
+                mode,
+                spp: 3,
+                ..pixel_centre_settings(&scene)
+            };
+            let r = rendered(&gpu, scene, settings);
+            assert_eq!(r.outline_search_listed(), listed, "{}", mode.name());
+            let accum = r.read_accumulator(&gpu).unwrap();
+            let marks = r.read_outline_tile_marks(&gpu).unwrap();
+            assert!(
+                marks.iter().filter(|&&m| m != 0).count() >= 20,
+                "{}: too few marked tiles for the test to mean anything",
+                mode.name()
+            );
+            let miscounted: Vec<usize> = (0..accum.len()).filter(|&i| accum[i][3] != 3.0).collect();
+            assert!(
+                miscounted.is_empty(),
+                "{} (tile list {listed}): {} pixels do not count 3 samples, the first {:?} with {}",
+                mode.name(),
+                miscounted.len(),
+                miscounted.first(),
+                miscounted.first().map_or(0.0, |&i| accum[i][3])
+            );
+            sums.push(accum);
         }
         assert!(
-            images[0] == images[1],
-            "{}: the dispatch over every tile gives another image than the tile list",
+            sums[0] == sums[1],
+            "{}: the dispatch over every tile sums other colours than the tile list",
             mode.name()
         );
     }
+    gpu.set_outline_tile_list(true);
 }
 
 /// The outline marks have a timer span of their own ("outline_tiles"),

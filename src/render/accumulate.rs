@@ -11,10 +11,10 @@
 //! (timer span "accumulate"): `main` over every tile, which leaves the
 //! marked ones, and `outlined`, one workgroup per listed tile, which
 //! searches for outlines there (over every tile, the unmarked ones
-//! stopping at once, where there are more tiles than a dispatch may count). Apart, the search's code costs nothing to
-//! the tiles that do not run it (docs/performance-history.md, seventeenth
-//! session).
-//! Both read the G-buffer through `shaders/lib/gbuffer.wgsl`: one pipeline
+//! stopping at once, where there are more tiles than a dispatch may
+//! count). Apart, the search's code costs nothing to the tiles that do
+//! not run it (docs/performance-history.md, seventeenth session).
+//! All three kernels read the G-buffer through `shaders/lib/gbuffer.wgsl`: one pipeline
 //! each for the raster pass's textures and one for the trace pass's buffers
 //! (override constant `TRACED_GBUFFER`), so the trace pass's output is read
 //! where it was written, with no copy between.
@@ -80,7 +80,7 @@ pub struct AccumulatePass {
     /// G-buffers bound: the pipeline reads one.
     bind_group: Option<wgpu::BindGroup>,
     tiles_group: Option<wgpu::BindGroup>,
-    /// One word per tile: 1 where the accumulate kernel searched for
+    /// One word per tile: 1 where the `outlined` kernel searched for
     /// outlines in the last sample (when the scene has outlines).
     marks: Option<wgpu::Buffer>,
     /// The marked tiles' indices, and the `outlined` kernel's indirect
@@ -282,6 +282,11 @@ impl AccumulatePass {
         self.outline_dispatch = Some(outline_dispatch);
     }
 
+    /// Whether `outlined` runs over the listed tiles (else over every tile).
+    pub fn listed(&self) -> bool {
+        self.listed
+    }
+
     /// The tile marks of the last sample, one per accumulate tile, row by
     /// row: 1 where the outline search ran, 0 where it was skipped. For
     /// tests; meaningful only when the scene has outlines.
@@ -319,7 +324,8 @@ impl AccumulatePass {
     /// The accumulation: `main` over every tile, then, where the scene has
     /// `outlines` (and [`AccumulatePass::encode_tiles`] marked and listed
     /// this sample's tiles), `outlined` over the listed tiles (over every
-    /// tile where there are too many to list).
+    /// tile where there are too many to list, or where
+    /// [`Gpu::set_outline_tile_list`] turned the list off).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,

@@ -953,6 +953,13 @@ impl Renderer {
         self.accumulate.read_tile_marks(gpu)
     }
 
+    /// Whether the outline search runs over the list of marked tiles (one
+    /// indirect dispatch), else over every tile ([`Gpu::set_outline_tile_list`],
+    /// or more tiles than one dispatch may count). For tests.
+    pub fn outline_search_listed(&self) -> bool {
+        self.accumulate.listed()
+    }
+
     /// How this renderer's samples find primary visibility: the settings'
     /// mode, except that hybrid mode with no triangle mesh to rasterize
     /// traces everything as raytrace mode does (the same rays, the same
