@@ -373,11 +373,26 @@ fn no_driver_noise_without_xdg_runtime_dir() {
     let noise = "XDG_RUNTIME_DIR";
     let with_display = run(Some(":4321"));
     assert!(with_display.status.success(), "{}", stderr(&with_display));
-    assert!(
-        stderr(&with_display).contains(noise),
-        "the layer should run when an X display is set: {}",
-        stderr(&with_display)
-    );
+    // Only where Mesa's layer is installed (not on a machine with the NVIDIA
+    // driver alone) can the setup show the noise.
+    let layer = [
+        "/usr/share/vulkan/implicit_layer.d",
+        "/etc/vulkan/implicit_layer.d",
+    ]
+    .iter()
+    .filter_map(|d| std::fs::read_dir(d).ok())
+    .flatten()
+    .flatten()
+    .any(|e| e.file_name().to_string_lossy().contains("device_select"));
+    if layer {
+        assert!(
+            stderr(&with_display).contains(noise),
+            "the layer should run when an X display is set: {}",
+            stderr(&with_display)
+        );
+    } else {
+        eprintln!("Mesa's device-select layer is not installed: only the quiet run is checked");
+    }
     let without_display = run(None);
     assert!(
         without_display.status.success(),

@@ -53,7 +53,7 @@ fn writes_a_contact_sheet_and_one_line_per_pair() {
         spp: 2,
         ..Default::default()
     };
-    let gpu = celray::gpu::Gpu::new_headless(&celray::gpu::AdapterChoice::Software).unwrap();
+    let gpu = celray::gpu::Gpu::new_headless(&celray::gpu::AdapterChoice::for_tests()).unwrap();
     let view = celray::compare::ViewSpec::parse("blinn-phong").unwrap();
     let frames =
         celray::compare::render_views(&gpu, &scene, &settings, &[view], |_, _, _| {}).unwrap();

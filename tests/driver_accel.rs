@@ -44,9 +44,10 @@ fn manifest_dir() -> &'static std::path::Path {
 /// 10,000 random rays through [`random_instances`] (CSG leaf included): the driver path finds the
 /// same instance as the CPU reference and t within 1e-4 relative. A ray may
 /// disagree only where it grazes an edge (the CPU reference itself changes
-/// its answer when the ray origin moves by 1e-4 of the scene size): the
-/// driver's triangle test is watertight, Moller-Trumbore is not, so edge
-/// rays may legitimately go either way; at most 0.1% of rays.
+/// its answer when the ray origin moves by 1e-4 of the scene size): both
+/// triangle tests are watertight, but a ray through a shared edge may be
+/// given to either triangle (each test has its own rule), so edge rays may
+/// legitimately go either way; at most 0.1% of rays.
 #[test]
 fn driver_hits_match_cpu_reference_on_random_rays() {
     let Some(gpu) = driver_gpu("driver_hits_match_cpu_reference_on_random_rays") else {
@@ -96,8 +97,8 @@ fn render_with(
 /// The same image from both paths: FLIP mean <= 0.01 at 16 spp with the
 /// same seed. The two paths intersect analytic and CSG shapes with the same
 /// WGSL on the same object-space rays, so they differ only where the
-/// driver's watertight triangle test and celray's Moller-Trumbore disagree
-/// on a mesh edge (a few pixels' samples) and in t rounding; 0.01 is the
+/// driver's triangle test and celray's give a ray through a shared mesh
+/// edge to different triangles (a few pixels' samples) and in t rounding; 0.01 is the
 /// issue's bound, about a tenth of the FLIP between toon with 4 and 7 bands.
 /// On failure both images are written under target/.
 fn assert_same_image(gpu: &Gpu, name: &str, scene: &Scene, mode: RenderMode, size: (u32, u32)) {

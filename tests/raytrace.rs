@@ -902,3 +902,187 @@ fn uniform_table_copies_draw_what_the_storage_buffers_draw() {
         }
     }
 }
+
+/// A ray's origin, its direction (the aim point minus the origin) and what
+/// it is aimed at ("vertex" or "edge").
+type AimedRay = (Vec3, Vec3, &'static str);
+
+/// A height field over [-1, 1]^2 in x and z (6 x 6 cells, heights in
+/// [0, 0.3), each cell split along alternating diagonals, every triangle
+/// wound with its normal up), with the rays of
+/// [`rays_through_edges_and_vertices_hit_once`]: each aimed from 3-4 units
+/// above and up to 1 unit aside at a vertex or a point on an inner edge.
+/// Such a ray descends at a slope of at least 3 / sqrt(2), steeper than
+/// any cell's (at most 0.3 over 1/3), so it crosses the surface exactly
+/// once, at its aim point: t = 1, since dir = aim - origin. The field is
+/// turned so that its up axis is +y, -y, +x, -x, +z or -z by `turn`, so
+/// that every axis leads a ray's direction, either way.
+fn height_field_and_rays(turn: u32) -> (Vec<[Vec3; 3]>, Vec<AimedRay>) {
+    use celray::sampling::uniform;
+    const N: u32 = 6;
+    let turned = |p: Vec3| -> Vec3 {
+        match turn {
+            0 => p,
+            1 => Vec3::new(p.x, -p.y, -p.z),
+            2 => Vec3::new(p.y, p.z, p.x),
+            3 => Vec3::new(-p.y, p.z, -p.x),
+            4 => Vec3::new(p.z, p.x, p.y),
+            _ => Vec3::new(p.z, -p.x, -p.y),
+        }
+    };
+    let vertex = |i: u32, j: u32| {
+        Vec3::new(
+            -1.0 + 2.0 * i as f32 / N as f32,
+            0.3 * uniform(i, j, 40 + turn),
+            -1.0 + 2.0 * j as f32 / N as f32,
+        )
+    };
+    let mut triangles = Vec::new();
+    for i in 0..N {
+        for j in 0..N {
+            let [a, b, c, d] = [
+                vertex(i, j),
+                vertex(i + 1, j),
+                vertex(i + 1, j + 1),
+                vertex(i, j + 1),
+            ];
+            let halves = if (i + j) % 2 == 0 {
+                [[a, b, c], [a, c, d]]
+            } else {
+                [[a, b, d], [b, c, d]]
+            };
+            for [p, q, r] in halves {
+                let up = (q - p).cross(r - p).y > 0.0;
+                triangles.push(if up { [p, q, r] } else { [p, r, q] });
+            }
+        }
+    }
+    let inner = |p: Vec3| p.x.abs() < 0.999 && p.z.abs() < 0.999;
+    let mut rays = Vec::new();
+    let mut aim = |target: Vec3, what: &'static str| {
+        let k = rays.len() as u32;
+        let o = target
+            + Vec3::new(
+                2.0 * uniform(k, 41, turn) - 1.0,
+                3.0 + uniform(k, 42, turn),
+                2.0 * uniform(k, 43, turn) - 1.0,
+            );
+        rays.push((turned(o), turned(target) - turned(o), what));
+    };
+    for i in 1..N {
+        for j in 1..N {
+            aim(vertex(i, j), "vertex");
+        }
+    }
+    for (n, tri) in triangles.iter().enumerate() {
+        for e in 0..3 {
+            let (p, q) = (tri[e], tri[(e + 1) % 3]);
+            if inner(p) || inner(q) || inner((p + q) * 0.5) {
+                let s = 0.05 + 0.9 * uniform(n as u32, e as u32, 44 + turn);
+                aim(p + (q - p) * s, "edge");
+            }
+        }
+    }
+    let triangles = triangles.into_iter().map(|t| t.map(turned)).collect();
+    (triangles, rays)
+}
+
+/// Watertight triangles: a ray through a shared edge or vertex of a mesh
+/// finds exactly one of the triangles there, never none (a crack the ray
+/// slips through) and never two. On the CPU reference every triangle is
+/// tested and exactly one must hit, at t = 1 within 1e-4 (the aim point
+/// is rounded to f32, about 1e-7 of the field's size, and t is a ratio of
+/// such values). On the GPU the closest hit of every ray must be that one
+/// (t = 1 within 1e-4). Möller-Trumbore fails both: on an NVIDIA GPU it
+/// left the diagonal of a head-on quad unhit.
+#[test]
+fn rays_through_edges_and_vertices_hit_once() {
+    use celray::accel::intersect::{triangle, TriangleRay};
+    let gpu = gpu();
+    let dir = std::env::temp_dir().join(format!("celray-watertight-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for turn in 0..6 {
+        let (triangles, rays) = height_field_and_rays(turn);
+        let gpu_triangles: Vec<_> = triangles
+            .iter()
+            .map(|t| celray::accel::layout::GpuTriangle {
+                p0: t[0].extend(0.0).to_array(),
+                p1: t[1].extend(0.0).to_array(),
+                p2: t[2].extend(0.0).to_array(),
+                n0: [0.0; 4],
+                n1: [0.0; 4],
+                n2: [0.0; 4],
+            })
+            .collect();
+        for (i, (o, d, what)) in rays.iter().enumerate() {
+            let ray = TriangleRay::new(*o, *d);
+            let hits: Vec<f32> = gpu_triangles
+                .iter()
+                .filter_map(|t| triangle(&ray, t, 0.0, f32::INFINITY).map(|h| h.t))
+                .collect();
+            assert!(
+                hits.len() == 1 && (hits[0] - 1.0).abs() < 1e-4,
+                "turn {turn}, ray {i} at a {what}: CPU hits at t = {hits:?}, want one at 1"
+            );
+        }
+
+        let mut obj = String::new();
+        for t in &triangles {
+            for p in t {
+                obj += &format!("v {:?} {:?} {:?}\n", p.x, p.y, p.z);
+            }
+        }
+        for k in 0..triangles.len() {
+            obj += &format!("f {} {} {}\n", 3 * k + 1, 3 * k + 2, 3 * k + 3);
+        }
+        std::fs::write(dir.join("field.obj"), obj).unwrap();
+        let path = dir.join("field.ron");
+        std::fs::write(
+            &path,
+            r#"(version: 1,
+                camera: (eye: (0.0, 8.0, 0.0), target: (0.0, 0.0, 0.0), up: (0.0, 0.0, -1.0),
+                         fov_y_deg: 30.0, width: 8, height: 8),
+                materials: { "m": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) },
+                shapes: { "field": Mesh(path: "field.obj") },
+                instances: [(shape: "field", material: "m")])"#,
+        )
+        .unwrap();
+        let renderer = buffers_only(&gpu, Scene::load(&path).unwrap());
+        for (i, (o, d, what)) in rays.iter().enumerate() {
+            let hit = renderer
+                .scene_buffers()
+                .accel
+                .closest_hit(*o, *d, 0.0, 1e30)
+                .hit;
+            assert!(
+                hit.is_some_and(|h| (h.t - 1.0).abs() < 1e-4),
+                "turn {turn}, ray {i} at a {what}: the CPU BVH walk found {hit:?}, want t = 1"
+            );
+        }
+        let gpu_rays: Vec<_> = rays
+            .iter()
+            .map(|(o, d, _)| celray::gpu::twins::GpuRay {
+                origin: o.extend(0.0).to_array(),
+                dir: d.extend(1e30).to_array(),
+            })
+            .collect();
+        let hits = RayBatch::new(&gpu)
+            .unwrap()
+            .trace(&gpu, renderer.scene_buffers(), &gpu_rays)
+            .unwrap();
+        let bad: Vec<_> = hits
+            .iter()
+            .zip(&rays)
+            .enumerate()
+            .filter(|(_, (h, _))| h.instance != 0 || (h.t - 1.0).abs() >= 1e-4)
+            .map(|(i, (h, r))| (i, r.2, h.instance as i64, h.t))
+            .collect();
+        assert!(
+            bad.is_empty(),
+            "turn {turn}: {} of {} GPU rays missed their aim point (ray, aimed at, instance, t): {:?}",
+            bad.len(),
+            rays.len(),
+            &bad[..bad.len().min(5)]
+        );
+    }
+}

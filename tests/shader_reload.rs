@@ -39,7 +39,7 @@ fn render(gpu: &Gpu) -> Result<Vec<u8>, celray::gpu::GpuError> {
 
 #[test]
 fn shaders_on_disk_replace_the_embedded_ones() {
-    let gpu = Gpu::new_headless(&AdapterChoice::Software).unwrap();
+    let gpu = Gpu::new_headless(&AdapterChoice::for_tests()).unwrap();
     let embedded = render(&gpu).unwrap();
 
     // An unchanged copy renders the same image.
@@ -67,7 +67,7 @@ fn shaders_on_disk_replace_the_embedded_ones() {
 
 #[test]
 fn a_broken_shader_is_an_error_naming_the_file() {
-    let gpu = Gpu::new_headless(&AdapterChoice::Software).unwrap();
+    let gpu = Gpu::new_headless(&AdapterChoice::for_tests()).unwrap();
     let dir = copy_shaders("broken");
     let raster = dir.join("raster.wgsl");
     let mut text = std::fs::read_to_string(&raster).unwrap();

@@ -182,8 +182,65 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
     return no_hit();
 }
 
-// Moller-Trumbore on triangle k of `triangles`: (t, u, v, 1) with u, v
-// the barycentric coordinates of the hit, or w = 0 where the ray misses
+// A ray prepared for the watertight triangle test of Woop, Benthin and
+// Wald (2013): the twin of TriangleRay in src/accel/intersect.rs (same
+// formulas, same order). Vertices move into a sheared frame where the ray
+// is the z axis through (0, 0): x = a[kx] - a[kz] d[kx] / d[kz],
+// y = a[ky] - a[kz] d[ky] / d[kz], z = a[kz] / d[kz] (t in the vertex's z
+// plane), for a = vertex - o and kz the dominant axis of d. Each vertex is
+// transformed on its own, so triangles sharing a vertex see it at the very
+// same point and a ray through a shared edge or vertex of a consistently
+// wound mesh finds exactly one of them (Moller-Trumbore's rounding depends
+// on the whole triangle: on an NVIDIA GPU, which fuses multiply-adds, rays
+// through the diagonal of a quad missed both halves).
+struct TriangleRay {
+    o: vec3<f32>,
+    rx: vec3<f32>,
+    ry: vec3<f32>,
+    rz: vec3<f32>,
+}
+
+fn axis_vector(k: u32) -> vec3<f32> {
+    return vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
+}
+
+fn triangle_ray(o: vec3<f32>, d: vec3<f32>) -> TriangleRay {
+    let a = abs(d);
+    let kz = select(select(2u, 1u, a.y >= a.z), 0u, a.x >= a.y && a.x >= a.z);
+    // Keep the winding: a triangle facing the ray turns the same way.
+    let flip = d[kz] < 0.0;
+    let kx = select((kz + 1u) % 3u, (kz + 2u) % 3u, flip);
+    let ky = select((kz + 2u) % 3u, (kz + 1u) % 3u, flip);
+    let ez = axis_vector(kz);
+    return TriangleRay(o, axis_vector(kx) - ez * (d[kx] / d[kz]), axis_vector(ky) - ez * (d[ky] / d[kz]), ez * (1.0 / d[kz]));
+}
+
+fn sheared(r: TriangleRay, p: vec3<f32>) -> vec3<f32> {
+    let a = p - r.o;
+    return vec3<f32>(dot(a, r.rx), dot(a, r.ry), dot(a, r.rz));
+}
+
+// Twice the signed area of (0, p, q) in the sheared plane, as
+// (q.x p.y - q.y p.x) - (p.x q.y - p.y q.x): swapping p and q swaps the two
+// terms, each computed by the same operations on the same operands, so a
+// neighbour walking q -> p gets exactly the negated value, also where the
+// compiler fuses a multiply into a subtraction (src/accel/intersect.rs,
+// edge, says more).
+fn edge_value(p: vec2<f32>, q: vec2<f32>) -> f32 {
+    return (q.x * p.y - q.y * p.x) - (p.x * q.y - p.y * q.x);
+}
+
+// Whether a triangle facing the ray owns the points of its edge p -> q
+// where the edge value is exactly 0 (the rasterizer's top-left rule: of
+// two triangles sharing the edge exactly one owns it, of a fan round a
+// vertex exactly one owns the vertex).
+fn edge_owned(p: vec2<f32>, q: vec2<f32>) -> bool {
+    let dq = q - p;
+    return (dq.y > 0.0) | ((dq.y == 0.0) & (dq.x < 0.0));
+}
+
+// Triangle k of `triangles` against the prepared ray: (t, u, v, 1) with
+// u, v the barycentric weights of p1 and p2, or w = 0 where the ray misses
 // it within (t_min, t_max). It reads only the corners: a traversal tests
 // many triangles and needs the normals of its closest hit alone
 // (triangle_hit), and on the CPU driver every field read is a gather.
@@ -194,21 +251,25 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
 // with non-short-circuit `&` and `|` (WGSL's `&&` and `||` branch) took
 // 4-7% off mesh ray batches and 2-3% off trace passes with meshes
 // (docs/performance-history.md, thirteenth session). Same arithmetic, same answers.
-fn triangle_tuv(o: vec3<f32>, d: vec3<f32>, k: u32, t_min: f32, t_max: f32) -> vec4<f32> {
-    let p0 = triangles[k].p0.xyz;
-    let e1 = triangles[k].p1.xyz - p0;
-    let e2 = triangles[k].p2.xyz - p0;
-    let pv = cross(d, e2);
-    let det = dot(e1, pv);
+fn triangle_tuv(r: TriangleRay, k: u32, t_min: f32, t_max: f32) -> vec4<f32> {
+    let a = sheared(r, triangles[k].p0.xyz);
+    let b = sheared(r, triangles[k].p1.xyz);
+    let c = sheared(r, triangles[k].p2.xyz);
+    // Each vertex's weight is the edge value opposite it.
+    let u = edge_value(b.xy, c.xy);
+    let v = edge_value(c.xy, a.xy);
+    let w = edge_value(a.xy, b.xy);
+    let ou = edge_owned(b.xy, c.xy);
+    let ov = edge_owned(c.xy, a.xy);
+    let ow = edge_owned(a.xy, b.xy);
+    let facing = ((u > 0.0) | ((u == 0.0) & ou)) & ((v > 0.0) | ((v == 0.0) & ov)) & ((w > 0.0) | ((w == 0.0) & ow));
+    let away = ((u < 0.0) | ((u == 0.0) & !ou)) & ((v < 0.0) | ((v == 0.0) & !ov)) & ((w < 0.0) | ((w == 0.0) & !ow));
+    let det = u + v + w;
     let inv = 1.0 / det;
-    let tv = o - p0;
-    let u = dot(tv, pv) * inv;
-    let qv = cross(tv, e1);
-    let v = dot(d, qv) * inv;
-    let t = dot(e2, qv) * inv;
-    // The same comparisons as the early returns they replace (NaN included).
-    let inside = (det != 0.0) & !((u < 0.0) | (u > 1.0)) & !((v < 0.0) | (u + v > 1.0)) & (t > t_min) & (t < t_max);
-    return select(vec4<f32>(0.0), vec4<f32>(t, u, v, 1.0), inside);
+    let t = (u * a.z + v * b.z + w * c.z) * inv;
+    // The same comparisons as the CPU twin's early returns (NaN included).
+    let inside = (facing | away) & (det != 0.0) & (t > t_min) & (t < t_max);
+    return select(vec4<f32>(0.0), vec4<f32>(t, v * inv, w * inv, 1.0), inside);
 }
 
 // The hit on triangle k at (t, u, v) from triangle_tuv: the shading normal
@@ -225,8 +286,8 @@ fn triangle_hit(k: u32, tuv: vec3<f32>) -> ObjectHit {
 }
 
 // Triangle k's hit, or no_hit().
-fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, k: u32, t_min: f32, t_max: f32) -> ObjectHit {
-    let h = triangle_tuv(o, d, k, t_min, t_max);
+fn intersect_triangle(r: TriangleRay, k: u32, t_min: f32, t_max: f32) -> ObjectHit {
+    let h = triangle_tuv(r, k, t_min, t_max);
     if h.w == 0.0 {
         return no_hit();
     }

@@ -47,14 +47,19 @@ fn take_step() -> bool {
 }
 
 // Entry and exit t of a node's box, clipped to (t_min, t_max); a miss has
-// entry > exit.
+// entry > exit. The exit is pushed out by BOX_EXIT_SLACK (relative), so that
+// rounding never culls a box that a ray through a vertex or an edge on its
+// face touches (BOX_EXIT_SLACK: lib/limits.wgsl, generated from
+// src/accel/intersect.rs, which says how large).
+
 fn node_span(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32) -> vec2<f32> {
     let t1 = (node.bounds_min - o) * inv_d;
     let t2 = (node.bounds_max - o) * inv_d;
     let lo = min(t1, t2);
     let hi = max(t1, t2);
     let near = max(max(max(lo.x, lo.y), lo.z), t_min);
-    let far = min(min(min(hi.x, hi.y), hi.z), t_max);
+    let exit = min(min(hi.x, hi.y), hi.z);
+    let far = min(exit * select(1.0 + BOX_EXIT_SLACK, 1.0 - BOX_EXIT_SLACK, exit < 0.0), t_max);
     return vec2<f32>(near, far);
 }
 
@@ -99,6 +104,7 @@ fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32
 // uses `trace_stack` above `base`, where the caller's entries end.
 fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, base: u32) -> ObjectHit {
     let inv_d = 1.0 / d;
+    let ray = triangle_ray(o, d);
     var best = NO_HIT;
     var best_tuv = vec3<f32>(0.0);
     var t_best = t_max;
@@ -121,7 +127,7 @@ fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
-            let h = triangle_tuv(o, d, k, t_min, t_best);
+            let h = triangle_tuv(ray, k, t_min, t_best);
             if h.w != 0.0 {
                 t_best = h.x;
                 best = k;

@@ -386,6 +386,7 @@ fn mesh_crossings(
     steps: &mut u32,
 ) -> Result<Vec<(f32, Vec3)>, CsgOverflow> {
     let mut hits: Vec<(f32, Vec3, bool)> = Vec::new();
+    let ray = intersect::TriangleRay::new(o, d);
     let walked = traverse(
         data.nodes,
         root,
@@ -396,7 +397,7 @@ fn mesh_crossings(
         |triangles, _, _| {
             for k in triangles {
                 if let Some(h) =
-                    intersect::triangle(o, d, &data.triangles[k as usize], -CSG_FAR, CSG_FAR)
+                    intersect::triangle(&ray, &data.triangles[k as usize], -CSG_FAR, CSG_FAR)
                 {
                     if hits.len() >= CSG_MESH_MAX_CROSSINGS as usize {
                         return ControlFlow::Break(CsgOverflow::Intervals);

@@ -196,37 +196,125 @@ pub fn plane(
     }
 }
 
-/// Moller-Trumbore; the shading normal interpolates the vertex normals by
-/// the barycentric coordinates (as the rasterizer does).
-pub fn triangle(o: Vec3, d: Vec3, tri: &GpuTriangle, t_min: f32, t_max: f32) -> Option<ObjectHit> {
-    let p0 = Vec3::from_slice(&tri.p0);
-    let e1 = Vec3::from_slice(&tri.p1) - p0;
-    let e2 = Vec3::from_slice(&tri.p2) - p0;
-    let pv = d.cross(e2);
-    let det = e1.dot(pv);
-    if det == 0.0 {
+/// A ray prepared for [`triangle`]: the watertight test of Woop, Benthin
+/// and Wald (2013, "Watertight Ray/Triangle Intersection"). Vertices are
+/// moved into a sheared frame where the ray is the z axis through (0, 0);
+/// each vertex is transformed on its own, so triangles that share a vertex
+/// see it at the very same point, and a ray through a shared edge or vertex
+/// of a consistently wound mesh finds exactly one of the triangles there
+/// (tests/raytrace.rs, rays_through_edges_and_vertices_hit_once);
+/// Möller-Trumbore, whose rounding depends on the whole triangle, can find
+/// none (a crack) or several.
+#[derive(Debug, Clone, Copy)]
+pub struct TriangleRay {
+    o: Vec3,
+    /// Rows of the shear: x = a[kx] - a[kz] d[kx] / d[kz],
+    /// y = a[ky] - a[kz] d[ky] / d[kz], z = a[kz] / d[kz] (= t in the
+    /// vertex's z plane), for a = vertex - o and kz the dominant axis of d.
+    rx: Vec3,
+    ry: Vec3,
+    rz: Vec3,
+}
+
+impl TriangleRay {
+    pub fn new(o: Vec3, d: Vec3) -> Self {
+        let a = d.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        // Keep the winding: a triangle facing the ray turns the same way.
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let axis = |k: usize| Vec3::AXES[k];
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        Self {
+            o,
+            rx: axis(kx) - axis(kz) * sx,
+            ry: axis(ky) - axis(kz) * sy,
+            rz: axis(kz) * sz,
+        }
+    }
+
+    fn sheared(&self, p: [f32; 4]) -> Vec3 {
+        let a = Vec3::from_slice(&p[..3]) - self.o;
+        Vec3::new(a.dot(self.rx), a.dot(self.ry), a.dot(self.rz))
+    }
+}
+
+/// Twice the signed area of (0, p, q) in the sheared plane, computed as
+/// (q.x p.y - q.y p.x) - (p.x q.y - p.y q.x): swapping p and q swaps the two
+/// bracketed terms, each computed by the same operations on the same
+/// operands, so a neighbour walking the edge q -> p gets exactly the negated
+/// value, also where a GPU compiler fuses a multiply into a subtraction
+/// (one plain term alone then rounds differently for the two triangles).
+/// Ordering the endpoints does the same but measured 1.5x the slowdown on
+/// lavapipe; (p + q).x (p - q).y - (p + q).y (p - q).x loses the small
+/// coordinates of a vertex the ray passes through (a vertex hit thrice).
+fn edge(p: Vec2, q: Vec2) -> f32 {
+    (q.x * p.y - q.y * p.x) - (p.x * q.y - p.y * q.x)
+}
+
+/// Whether a triangle facing the ray (all edge values >= 0) owns the points
+/// of its edge p -> q where the edge value is exactly 0: edges running in
+/// one half-plane of directions, so that of two triangles sharing the edge
+/// (walking it in opposite directions) exactly one owns it, and of a fan
+/// round a vertex exactly one owns the vertex (the rasterizer's top-left
+/// rule). A triangle facing away walks its edges the other way round.
+fn owned(p: Vec2, q: Vec2) -> bool {
+    let dq = q - p;
+    dq.y > 0.0 || (dq.y == 0.0 && dq.x < 0.0)
+}
+
+/// The watertight ray-triangle test (see [`TriangleRay`]): t and the
+/// barycentric weights (u, v) of p1 and p2, or None.
+pub fn triangle_tuv(ray: &TriangleRay, tri: &GpuTriangle, t_min: f32, t_max: f32) -> Option<Vec3> {
+    let (a, b, c) = (
+        ray.sheared(tri.p0),
+        ray.sheared(tri.p1),
+        ray.sheared(tri.p2),
+    );
+    let (a2, b2, c2) = (a.truncate(), b.truncate(), c.truncate());
+    // Each vertex's weight is the edge value opposite it.
+    let (u, v, w) = (edge(b2, c2), edge(c2, a2), edge(a2, b2));
+    let (ou, ov, ow) = (owned(b2, c2), owned(c2, a2), owned(a2, b2));
+    let facing = (u > 0.0 || (u == 0.0 && ou))
+        && (v > 0.0 || (v == 0.0 && ov))
+        && (w > 0.0 || (w == 0.0 && ow));
+    let away = (u < 0.0 || (u == 0.0 && !ou))
+        && (v < 0.0 || (v == 0.0 && !ov))
+        && (w < 0.0 || (w == 0.0 && !ow));
+    let det = u + v + w;
+    if !(facing || away) || det == 0.0 {
         return None;
     }
     let inv = 1.0 / det;
-    let tv = o - p0;
-    let u = tv.dot(pv) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let qv = tv.cross(e1);
-    let v = d.dot(qv) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let t = e2.dot(qv) * inv;
+    let t = (u * a.z + v * b.z + w * c.z) * inv;
     if !(t > t_min && t < t_max) {
         return None;
     }
-    let n = Vec3::from_slice(&tri.n0) * (1.0 - u - v)
-        + Vec3::from_slice(&tri.n1) * u
-        + Vec3::from_slice(&tri.n2) * v;
+    Some(Vec3::new(t, v * inv, w * inv))
+}
+
+/// The hit on a triangle (the watertight test, [`triangle_tuv`]); the
+/// shading normal interpolates the vertex normals by the barycentric
+/// weights (as the rasterizer does).
+pub fn triangle(ray: &TriangleRay, tri: &GpuTriangle, t_min: f32, t_max: f32) -> Option<ObjectHit> {
+    let tuv = triangle_tuv(ray, tri, t_min, t_max)?;
+    let (u, v) = (tuv.y, tuv.z);
+    let p0 = Vec3::from_slice(&tri.p0[..3]);
+    let e1 = Vec3::from_slice(&tri.p1[..3]) - p0;
+    let e2 = Vec3::from_slice(&tri.p2[..3]) - p0;
+    let n = Vec3::from_slice(&tri.n0[..3]) * (1.0 - u - v)
+        + Vec3::from_slice(&tri.n1[..3]) * u
+        + Vec3::from_slice(&tri.n2[..3]) * v;
     Some(ObjectHit {
-        t,
+        t: tuv.x,
         normal: n,
         geometric: e1.cross(e2),
     })
@@ -253,12 +341,30 @@ pub fn analytic(
     }
 }
 
-/// Slab test: the entry t of the box if the ray meets it within (t_min, t_max).
+/// How far a box's exit t is pushed out (relative) so that rounding never
+/// culls a box the ray touches. Each slab t is rounded in the subtraction,
+/// the reciprocal (Vulkan allows 2.5 ulp for 1/x) and the product: about 4
+/// ulp, 4.8e-7, at each end; 1e-6 covers both ends. A ray through a vertex
+/// or an edge on a box's face meets it at one t (near = far exactly), and
+/// without this a rounding of either end dropped the box and the triangle
+/// that owns the point (Ize 2013, "Robust BVH Ray Traversal", does the same
+/// with its own bound). shaders/lib/traverse.wgsl (node_span) reads it from
+/// the generated lib/limits.wgsl.
+pub const BOX_EXIT_SLACK: f32 = 1e-6;
+
+/// Slab test: the entry t of the box if the ray meets it within (t_min,
+/// t_max), the exit pushed out by [`BOX_EXIT_SLACK`].
 pub fn ray_box(o: Vec3, inv_d: Vec3, min: Vec3, max: Vec3, t_min: f32, t_max: f32) -> Option<f32> {
     let t1 = (min - o) * inv_d;
     let t2 = (max - o) * inv_d;
     let near = t1.min(t2).max_element().max(t_min);
-    let far = t1.max(t2).min_element().min(t_max);
+    let exit = t1.max(t2).min_element();
+    let slack = if exit < 0.0 {
+        1.0 - BOX_EXIT_SLACK
+    } else {
+        1.0 + BOX_EXIT_SLACK
+    };
+    let far = (exit * slack).min(t_max);
     (near <= far).then_some(near)
 }
 

@@ -373,6 +373,7 @@ impl SceneAccel {
             return (found.map(|h| (h, CSG_NO_MATERIAL)), false);
         }
         let mut best: Option<intersect::ObjectHit> = None;
+        let ray = intersect::TriangleRay::new(o, d);
         let walked = traverse(
             &self.nodes,
             s.blas_root,
@@ -383,7 +384,7 @@ impl SceneAccel {
             |triangles, _, t_best| {
                 for k in triangles {
                     if let Some(h) =
-                        intersect::triangle(o, d, &self.triangles[k as usize], t_min, *t_best)
+                        intersect::triangle(&ray, &self.triangles[k as usize], t_min, *t_best)
                     {
                         *t_best = h.t;
                         best = Some(h);

@@ -625,7 +625,7 @@ mod tests {
     /// magenta, so the pixel tells which renderer draws.
     #[test]
     fn reloaded_shaders_show_once_compiled_ahead() {
-        let gpu = Gpu::new_headless(&AdapterChoice::Software).unwrap();
+        let gpu = Gpu::new_headless(&AdapterChoice::for_tests()).unwrap();
         let format = wgpu::TextureFormat::Rgba8Unorm;
         let mut egui =
             egui_wgpu::Renderer::new(&gpu.device, format, egui_wgpu::RendererOptions::default());

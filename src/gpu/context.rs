@@ -35,6 +35,15 @@ impl AdapterChoice {
             .map(|v| AdapterChoice::parse(&v))
             .unwrap_or_default()
     }
+
+    /// The adapter the test suite renders on: `CELRAY_ADAPTER` if set (a
+    /// run on a GPU, say), else lavapipe (`software`), so that a plain
+    /// `cargo test` gives the same images on every machine.
+    pub fn for_tests() -> AdapterChoice {
+        std::env::var("CELRAY_ADAPTER")
+            .map(|v| AdapterChoice::parse(&v))
+            .unwrap_or(AdapterChoice::Software)
+    }
 }
 
 /// What was said of the adapter in use: for logs, stats lines and reports.

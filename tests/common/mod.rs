@@ -14,11 +14,7 @@ use celray::scene::Scene;
 
 /// The adapter the tests use: $CELRAY_ADAPTER if set, else lavapipe.
 pub fn gpu() -> Gpu {
-    let choice = match std::env::var("CELRAY_ADAPTER") {
-        Ok(v) => AdapterChoice::parse(&v),
-        Err(_) => AdapterChoice::Software,
-    };
-    Gpu::new_headless(&choice).unwrap_or_else(|e| panic!("{e}"))
+    Gpu::new_headless(&AdapterChoice::for_tests()).unwrap_or_else(|e| panic!("{e}"))
 }
 
 pub fn scene(ron: &str) -> Scene {
