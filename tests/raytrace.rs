@@ -910,7 +910,7 @@ type AimedRay = (Vec3, Vec3, &'static str);
 /// A height field over [-1, 1]^2 in x and z (6 x 6 cells, heights in
 /// [0, 0.3), each cell split along alternating diagonals, every triangle
 /// wound with its normal up), with the rays of
-/// [`rays_through_edges_and_vertices_hit_once`]: each aimed from 3-4 units
+/// [`rays_through_edges_and_vertices_never_slip_through`]: each aimed from 3-4 units
 /// above and up to 1 unit aside at a vertex or a point on an inner edge.
 /// Such a ray descends at a slope of at least 3 / sqrt(2), steeper than
 /// any cell's (at most 0.3 over 1/3), so it crosses the surface exactly
@@ -988,15 +988,18 @@ fn height_field_and_rays(turn: u32) -> (Vec<[Vec3; 3]>, Vec<AimedRay>) {
 }
 
 /// Watertight triangles: a ray through a shared edge or vertex of a mesh
-/// finds exactly one of the triangles there, never none (a crack the ray
-/// slips through) and never two. On the CPU reference every triangle is
-/// tested and exactly one must hit, at t = 1 within 1e-4 (the aim point
-/// is rounded to f32, about 1e-7 of the field's size, and t is a ratio of
-/// such values). On the GPU the closest hit of every ray must be that one
-/// (t = 1 within 1e-4). Möller-Trumbore fails both: on an NVIDIA GPU it
-/// left the diagonal of a head-on quad unhit.
+/// finds a triangle there, never none (a crack the ray slips through), and
+/// never one elsewhere. On the CPU reference every triangle is tested: at
+/// least one must hit, and every hit must lie at t = 1 within 1e-4 (the aim
+/// point is rounded to f32, about 1e-7 of the field's size, and t is a
+/// ratio of such values; two triangles may share the hit). The CPU BVH walk
+/// and the GPU ray batch must find t = 1 too. What fails it: BVH box tests
+/// without slack (a ray through a vertex on a box face; CPU and lavapipe),
+/// and on an NVIDIA H200 the triangle test without a tolerance (2 of 217
+/// edge rays of the first field missed), as Möller-Trumbore missed the
+/// diagonal of a head-on quad there.
 #[test]
-fn rays_through_edges_and_vertices_hit_once() {
+fn rays_through_edges_and_vertices_never_slip_through() {
     use celray::accel::intersect::{triangle, TriangleRay};
     let gpu = gpu();
     let dir = std::env::temp_dir().join(format!("celray-watertight-{}", std::process::id()));
@@ -1014,15 +1017,20 @@ fn rays_through_edges_and_vertices_hit_once() {
                 n2: [0.0; 4],
             })
             .collect();
+        let corners = triangles.iter().flatten();
+        let lo = corners
+            .clone()
+            .fold(Vec3::splat(f32::MAX), |m, p| m.min(*p));
+        let hi = corners.fold(Vec3::splat(f32::MIN), |m, p| m.max(*p));
         for (i, (o, d, what)) in rays.iter().enumerate() {
-            let ray = TriangleRay::new(*o, *d);
+            let ray = TriangleRay::new(*o, *d, lo, hi);
             let hits: Vec<f32> = gpu_triangles
                 .iter()
                 .filter_map(|t| triangle(&ray, t, 0.0, f32::INFINITY).map(|h| h.t))
                 .collect();
             assert!(
-                hits.len() == 1 && (hits[0] - 1.0).abs() < 1e-4,
-                "turn {turn}, ray {i} at a {what}: CPU hits at t = {hits:?}, want one at 1"
+                !hits.is_empty() && hits.iter().all(|t| (t - 1.0).abs() < 1e-4),
+                "turn {turn}, ray {i} at a {what}: CPU hits at t = {hits:?}, want them at 1"
             );
         }
 

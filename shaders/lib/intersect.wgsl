@@ -182,29 +182,34 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
     return no_hit();
 }
 
-// A ray prepared for the watertight triangle test of Woop, Benthin and
-// Wald (2013): the twin of TriangleRay in src/accel/intersect.rs (same
-// formulas, same order). Vertices move into a sheared frame where the ray
-// is the z axis through (0, 0): x = a[kx] - a[kz] d[kx] / d[kz],
+// A ray prepared for the ray-triangle test of Woop, Benthin and Wald
+// (2013) with a tolerance: the twin of TriangleRay in
+// src/accel/intersect.rs (same formulas, same order; EDGE_SLACK there says
+// why the tolerance). Vertices move into a sheared frame where the ray is
+// the z axis through (0, 0): x = a[kx] - a[kz] d[kx] / d[kz],
 // y = a[ky] - a[kz] d[ky] / d[kz], z = a[kz] / d[kz] (t in the vertex's z
-// plane), for a = vertex - o and kz the dominant axis of d. Each vertex is
-// transformed on its own, so triangles sharing a vertex see it at the very
-// same point and a ray through a shared edge or vertex of a consistently
-// wound mesh finds exactly one of them (Moller-Trumbore's rounding depends
-// on the whole triangle: on an NVIDIA GPU, which fuses multiply-adds, rays
-// through the diagonal of a quad missed both halves).
+// plane), for a = vertex - o and kz the dominant axis of d. A triangle is
+// hit where its three edge values have one sign, each allowed to miss zero
+// by EDGE_SLACK of the magnitudes in play, so a ray through a shared edge
+// or vertex finds at least one of the triangles there (Moller-Trumbore and
+// the exact test both left the diagonal of a head-on quad unhit on an
+// NVIDIA GPU, which fuses multiply-adds).
 struct TriangleRay {
     o: vec3<f32>,
     rx: vec3<f32>,
     ry: vec3<f32>,
     rz: vec3<f32>,
+    // EDGE_SLACK times the largest coordinate in play (max norm of the
+    // origin and of the mesh's bounds).
+    slack: f32,
 }
 
 fn axis_vector(k: u32) -> vec3<f32> {
     return vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
 }
 
-fn triangle_ray(o: vec3<f32>, d: vec3<f32>) -> TriangleRay {
+// The ray (o, d) against a mesh whose triangles lie in the box (lo, hi).
+fn triangle_ray(o: vec3<f32>, d: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>) -> TriangleRay {
     let a = abs(d);
     let kz = select(select(2u, 1u, a.y >= a.z), 0u, a.x >= a.y && a.x >= a.z);
     // Keep the winding: a triangle facing the ray turns the same way.
@@ -212,31 +217,14 @@ fn triangle_ray(o: vec3<f32>, d: vec3<f32>) -> TriangleRay {
     let kx = select((kz + 1u) % 3u, (kz + 2u) % 3u, flip);
     let ky = select((kz + 2u) % 3u, (kz + 1u) % 3u, flip);
     let ez = axis_vector(kz);
-    return TriangleRay(o, axis_vector(kx) - ez * (d[kx] / d[kz]), axis_vector(ky) - ez * (d[ky] / d[kz]), ez * (1.0 / d[kz]));
+    let m3 = max(abs(o), max(abs(lo), abs(hi)));
+    let m = max(max(m3.x, m3.y), m3.z);
+    return TriangleRay(o, axis_vector(kx) - ez * (d[kx] / d[kz]), axis_vector(ky) - ez * (d[ky] / d[kz]), ez * (1.0 / d[kz]), EDGE_SLACK * m);
 }
 
 fn sheared(r: TriangleRay, p: vec3<f32>) -> vec3<f32> {
     let a = p - r.o;
     return vec3<f32>(dot(a, r.rx), dot(a, r.ry), dot(a, r.rz));
-}
-
-// Twice the signed area of (0, p, q) in the sheared plane, as
-// (q.x p.y - q.y p.x) - (p.x q.y - p.y q.x): swapping p and q swaps the two
-// terms, each computed by the same operations on the same operands, so a
-// neighbour walking q -> p gets exactly the negated value, also where the
-// compiler fuses a multiply into a subtraction (src/accel/intersect.rs,
-// edge, says more).
-fn edge_value(p: vec2<f32>, q: vec2<f32>) -> f32 {
-    return (q.x * p.y - q.y * p.x) - (p.x * q.y - p.y * q.x);
-}
-
-// Whether a triangle facing the ray owns the points of its edge p -> q
-// where the edge value is exactly 0 (the rasterizer's top-left rule: of
-// two triangles sharing the edge exactly one owns it, of a fan round a
-// vertex exactly one owns the vertex).
-fn edge_owned(p: vec2<f32>, q: vec2<f32>) -> bool {
-    let dq = q - p;
-    return (dq.y > 0.0) | ((dq.y == 0.0) & (dq.x < 0.0));
 }
 
 // Triangle k of `triangles` against the prepared ray: (t, u, v, 1) with
@@ -255,15 +243,20 @@ fn triangle_tuv(r: TriangleRay, k: u32, t_min: f32, t_max: f32) -> vec4<f32> {
     let a = sheared(r, triangles[k].p0.xyz);
     let b = sheared(r, triangles[k].p1.xyz);
     let c = sheared(r, triangles[k].p2.xyz);
-    // Each vertex's weight is the edge value opposite it.
-    let u = edge_value(b.xy, c.xy);
-    let v = edge_value(c.xy, a.xy);
-    let w = edge_value(a.xy, b.xy);
-    let ou = edge_owned(b.xy, c.xy);
-    let ov = edge_owned(c.xy, a.xy);
-    let ow = edge_owned(a.xy, b.xy);
-    let facing = ((u > 0.0) | ((u == 0.0) & ou)) & ((v > 0.0) | ((v == 0.0) & ov)) & ((w > 0.0) | ((w == 0.0) & ow));
-    let away = ((u < 0.0) | ((u == 0.0) & !ou)) & ((v < 0.0) | ((v == 0.0) & !ov)) & ((w < 0.0) | ((w == 0.0) & !ow));
+    // Each vertex's weight is the edge value opposite it: twice the signed
+    // area of (0, p, q) for the edge p -> q, q.x p.y - q.y p.x.
+    let u = c.x * b.y - c.y * b.x;
+    let v = a.x * c.y - a.y * c.x;
+    let w = b.x * a.y - b.y * a.x;
+    // The tolerance of an edge value grows with its endpoints' size.
+    let la = abs(a.x) + abs(a.y);
+    let lb = abs(b.x) + abs(b.y);
+    let lc = abs(c.x) + abs(c.y);
+    let tu = r.slack * (lb + lc);
+    let tv = r.slack * (lc + la);
+    let tw = r.slack * (la + lb);
+    let facing = (u >= -tu) & (v >= -tv) & (w >= -tw);
+    let away = (u <= tu) & (v <= tv) & (w <= tw);
     let det = u + v + w;
     let inv = 1.0 / det;
     let t = (u * a.z + v * b.z + w * c.z) * inv;

@@ -104,7 +104,8 @@ fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32
 // uses `trace_stack` above `base`, where the caller's entries end.
 fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, base: u32) -> ObjectHit {
     let inv_d = 1.0 / d;
-    let ray = triangle_ray(o, d);
+    let bounds = load_node(root);
+    let ray = triangle_ray(o, d, bounds.bounds_min, bounds.bounds_max);
     var best = NO_HIT;
     var best_tuv = vec3<f32>(0.0);
     var t_best = t_max;

@@ -386,7 +386,13 @@ fn mesh_crossings(
     steps: &mut u32,
 ) -> Result<Vec<(f32, Vec3)>, CsgOverflow> {
     let mut hits: Vec<(f32, Vec3, bool)> = Vec::new();
-    let ray = intersect::TriangleRay::new(o, d);
+    let bounds = &data.nodes[root as usize];
+    let ray = intersect::TriangleRay::new(
+        o,
+        d,
+        Vec3::from(bounds.bounds_min),
+        Vec3::from(bounds.bounds_max),
+    );
     let walked = traverse(
         data.nodes,
         root,

@@ -196,15 +196,35 @@ pub fn plane(
     }
 }
 
-/// A ray prepared for [`triangle`]: the watertight test of Woop, Benthin
-/// and Wald (2013, "Watertight Ray/Triangle Intersection"). Vertices are
-/// moved into a sheared frame where the ray is the z axis through (0, 0);
-/// each vertex is transformed on its own, so triangles that share a vertex
-/// see it at the very same point, and a ray through a shared edge or vertex
-/// of a consistently wound mesh finds exactly one of the triangles there
-/// (tests/raytrace.rs, rays_through_edges_and_vertices_hit_once);
-/// Möller-Trumbore, whose rounding depends on the whole triangle, can find
-/// none (a crack) or several.
+/// How far (relative to the magnitudes in play) the triangle test's edge
+/// values may stray below zero and still count as inside: a ray through a
+/// shared edge or vertex then finds at least one of the triangles there,
+/// whatever the rounding. The edge values' error is a few roundings of
+/// coordinates as large as `m`, the largest of the ray origin and the
+/// mesh's bounds (max norm), times the sheared coordinates' size: about 4
+/// ulp of m per coordinate; 1e-6 (17 ulp) covers it with room for GPU
+/// compilers, which may fuse multiply-adds and reorder sums where WGSL gives
+/// no way to forbid it. Exact schemes that rely on the very same
+/// arithmetic in two triangles (Woop et al.'s, with an antisymmetric edge
+/// formula and a top-left rule) held on lavapipe and the CPU but still
+/// left the diagonal of a head-on quad unhit on an NVIDIA H200 (32 of 3,600
+/// pixels); a tolerance of 1e-6 of |q.x p.y| + |q.y p.x|, smaller than this
+/// one, closed it there.
+/// shaders/lib/intersect.wgsl reads it from the generated lib/limits.wgsl.
+pub const EDGE_SLACK: f32 = 1e-6;
+
+/// A ray prepared for [`triangle`]: the ray-triangle test of Woop, Benthin
+/// and Wald (2013, "Watertight Ray/Triangle Intersection"), with a
+/// tolerance. Vertices are moved into a sheared frame where the ray is the
+/// z axis through (0, 0), each vertex on its own, and a triangle is hit
+/// where its three edge values there have one sign, each allowed to miss
+/// zero by [`EDGE_SLACK`] of the magnitudes in play: so a ray through a
+/// shared edge or vertex finds at least one of the triangles there (tests/
+/// raytrace.rs, rays_through_edges_and_vertices_never_slip_through), where
+/// Möller-Trumbore, or the test without tolerance on a GPU, found none (a
+/// crack). Two triangles may both be hit at an edge, at the same t: the
+/// closest-hit walk keeps one, and a CSG leaf's crossings ignore a repeated
+/// entry (`mesh_crossings`).
 #[derive(Debug, Clone, Copy)]
 pub struct TriangleRay {
     o: Vec3,
@@ -214,10 +234,15 @@ pub struct TriangleRay {
     rx: Vec3,
     ry: Vec3,
     rz: Vec3,
+    /// EDGE_SLACK times the largest coordinate in play (max norm of the
+    /// origin and of the mesh's bounds).
+    slack: f32,
 }
 
 impl TriangleRay {
-    pub fn new(o: Vec3, d: Vec3) -> Self {
+    /// The ray (o, d) against a mesh whose triangles lie in the box
+    /// (`bounds_min`, `bounds_max`).
+    pub fn new(o: Vec3, d: Vec3, bounds_min: Vec3, bounds_max: Vec3) -> Self {
         let a = d.abs();
         let kz = if a.x >= a.y && a.x >= a.z {
             0
@@ -233,11 +258,17 @@ impl TriangleRay {
         }
         let axis = |k: usize| Vec3::AXES[k];
         let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let m = o
+            .abs()
+            .max(bounds_min.abs())
+            .max(bounds_max.abs())
+            .max_element();
         Self {
             o,
             rx: axis(kx) - axis(kz) * sx,
             ry: axis(ky) - axis(kz) * sy,
             rz: axis(kz) * sz,
+            slack: EDGE_SLACK * m,
         }
     }
 
@@ -247,48 +278,29 @@ impl TriangleRay {
     }
 }
 
-/// Twice the signed area of (0, p, q) in the sheared plane, computed as
-/// (q.x p.y - q.y p.x) - (p.x q.y - p.y q.x): swapping p and q swaps the two
-/// bracketed terms, each computed by the same operations on the same
-/// operands, so a neighbour walking the edge q -> p gets exactly the negated
-/// value, also where a GPU compiler fuses a multiply into a subtraction
-/// (one plain term alone then rounds differently for the two triangles).
-/// Ordering the endpoints does the same but measured 1.5x the slowdown on
-/// lavapipe; (p + q).x (p - q).y - (p + q).y (p - q).x loses the small
-/// coordinates of a vertex the ray passes through (a vertex hit thrice).
-fn edge(p: Vec2, q: Vec2) -> f32 {
-    (q.x * p.y - q.y * p.x) - (p.x * q.y - p.y * q.x)
-}
-
-/// Whether a triangle facing the ray (all edge values >= 0) owns the points
-/// of its edge p -> q where the edge value is exactly 0: edges running in
-/// one half-plane of directions, so that of two triangles sharing the edge
-/// (walking it in opposite directions) exactly one owns it, and of a fan
-/// round a vertex exactly one owns the vertex (the rasterizer's top-left
-/// rule). A triangle facing away walks its edges the other way round.
-fn owned(p: Vec2, q: Vec2) -> bool {
-    let dq = q - p;
-    dq.y > 0.0 || (dq.y == 0.0 && dq.x < 0.0)
-}
-
-/// The watertight ray-triangle test (see [`TriangleRay`]): t and the
-/// barycentric weights (u, v) of p1 and p2, or None.
+/// The ray-triangle test (see [`TriangleRay`]): t and the barycentric
+/// weights (u, v) of p1 and p2, or None.
 pub fn triangle_tuv(ray: &TriangleRay, tri: &GpuTriangle, t_min: f32, t_max: f32) -> Option<Vec3> {
     let (a, b, c) = (
         ray.sheared(tri.p0),
         ray.sheared(tri.p1),
         ray.sheared(tri.p2),
     );
-    let (a2, b2, c2) = (a.truncate(), b.truncate(), c.truncate());
-    // Each vertex's weight is the edge value opposite it.
-    let (u, v, w) = (edge(b2, c2), edge(c2, a2), edge(a2, b2));
-    let (ou, ov, ow) = (owned(b2, c2), owned(c2, a2), owned(a2, b2));
-    let facing = (u > 0.0 || (u == 0.0 && ou))
-        && (v > 0.0 || (v == 0.0 && ov))
-        && (w > 0.0 || (w == 0.0 && ow));
-    let away = (u < 0.0 || (u == 0.0 && !ou))
-        && (v < 0.0 || (v == 0.0 && !ov))
-        && (w < 0.0 || (w == 0.0 && !ow));
+    // Each vertex's weight is the edge value opposite it: twice the signed
+    // area of (0, p, q) for the edge p -> q, q.x p.y - q.y p.x.
+    let u = c.x * b.y - c.y * b.x;
+    let v = a.x * c.y - a.y * c.x;
+    let w = b.x * a.y - b.y * a.x;
+    // The tolerance of an edge value grows with its endpoints' size.
+    let size = |p: Vec3| p.x.abs() + p.y.abs();
+    let (la, lb, lc) = (size(a), size(b), size(c));
+    let (tu, tv, tw) = (
+        ray.slack * (lb + lc),
+        ray.slack * (lc + la),
+        ray.slack * (la + lb),
+    );
+    let facing = u >= -tu && v >= -tv && w >= -tw;
+    let away = u <= tu && v <= tv && w <= tw;
     let det = u + v + w;
     if !(facing || away) || det == 0.0 {
         return None;
@@ -301,7 +313,7 @@ pub fn triangle_tuv(ray: &TriangleRay, tri: &GpuTriangle, t_min: f32, t_max: f32
     Some(Vec3::new(t, v * inv, w * inv))
 }
 
-/// The hit on a triangle (the watertight test, [`triangle_tuv`]); the
+/// The hit on a triangle ([`triangle_tuv`]); the
 /// shading normal interpolates the vertex normals by the barycentric
 /// weights (as the rasterizer does).
 pub fn triangle(ray: &TriangleRay, tri: &GpuTriangle, t_min: f32, t_max: f32) -> Option<ObjectHit> {

@@ -373,7 +373,13 @@ impl SceneAccel {
             return (found.map(|h| (h, CSG_NO_MATERIAL)), false);
         }
         let mut best: Option<intersect::ObjectHit> = None;
-        let ray = intersect::TriangleRay::new(o, d);
+        let root = &self.nodes[s.blas_root as usize];
+        let ray = intersect::TriangleRay::new(
+            o,
+            d,
+            Vec3::from(root.bounds_min),
+            Vec3::from(root.bounds_max),
+        );
         let walked = traverse(
             &self.nodes,
             s.blas_root,

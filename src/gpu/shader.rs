@@ -69,10 +69,11 @@ pub fn u32_limits() -> Vec<U32Limit> {
 /// Every `f32` constant of [`limits_header`], by its WGSL name.
 pub fn f32_limits() -> Vec<F32Limit> {
     use crate::accel::csg::{CSG_EPS_ABS, CSG_EPS_REL, CSG_FAR};
-    use crate::accel::intersect::BOX_EXIT_SLACK;
+    use crate::accel::intersect::{BOX_EXIT_SLACK, EDGE_SLACK};
     use crate::accel::shadow_cull::PLANE_MARGIN;
     vec![
         ("BOX_EXIT_SLACK", BOX_EXIT_SLACK),
+        ("EDGE_SLACK", EDGE_SLACK),
         ("PLANE_MARGIN", PLANE_MARGIN),
         ("CSG_FAR", CSG_FAR),
         ("CSG_EPS_ABS", CSG_EPS_ABS),
