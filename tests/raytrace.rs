@@ -993,7 +993,9 @@ fn height_field_and_rays(turn: u32) -> (Vec<[Vec3; 3]>, Vec<AimedRay>) {
 /// least one must hit, and every hit must lie at t = 1 within 1e-4 (the aim
 /// point is rounded to f32, about 1e-7 of the field's size, and t is a
 /// ratio of such values; two triangles may share the hit). The CPU BVH walk
-/// and the GPU ray batch must find t = 1 too. What fails it: BVH box tests
+/// and the GPU ray batch must find t = 1 too, the batch both with exact
+/// edge comparisons (lavapipe's default) and with the tolerance (GPUs'
+/// default, `Gpu::set_edge_tolerance`). What fails it: BVH box tests
 /// without slack (a ray through a vertex on a box face; CPU and lavapipe),
 /// and on an NVIDIA H200 the triangle test without a tolerance (2 of 217
 /// edge rays of the first field missed), as Möller-Trumbore missed the
@@ -1074,23 +1076,28 @@ fn rays_through_edges_and_vertices_never_slip_through() {
                 dir: d.extend(1e30).to_array(),
             })
             .collect();
-        let hits = RayBatch::new(&gpu)
-            .unwrap()
-            .trace(&gpu, renderer.scene_buffers(), &gpu_rays)
-            .unwrap();
-        let bad: Vec<_> = hits
-            .iter()
-            .zip(&rays)
-            .enumerate()
-            .filter(|(_, (h, _))| h.instance != 0 || (h.t - 1.0).abs() >= 1e-4)
-            .map(|(i, (h, r))| (i, r.2, h.instance as i64, h.t))
-            .collect();
-        assert!(
-            bad.is_empty(),
-            "turn {turn}: {} of {} GPU rays missed their aim point (ray, aimed at, instance, t): {:?}",
-            bad.len(),
-            rays.len(),
-            &bad[..bad.len().min(5)]
-        );
+        // Both triangle tests: exact edge comparisons (lavapipe's default)
+        // and with the tolerance (GPUs' default).
+        for tolerance in [false, true] {
+            gpu.set_edge_tolerance(tolerance);
+            let hits = RayBatch::new(&gpu)
+                .unwrap()
+                .trace(&gpu, renderer.scene_buffers(), &gpu_rays)
+                .unwrap();
+            let bad: Vec<_> = hits
+                .iter()
+                .zip(&rays)
+                .enumerate()
+                .filter(|(_, (h, _))| h.instance != 0 || (h.t - 1.0).abs() >= 1e-4)
+                .map(|(i, (h, r))| (i, r.2, h.instance as i64, h.t))
+                .collect();
+            assert!(
+                bad.is_empty(),
+                "turn {turn}, tolerance {tolerance}: {} of {} GPU rays missed their aim point (ray, aimed at, instance, t): {:?}",
+                bad.len(),
+                rays.len(),
+                &bad[..bad.len().min(5)]
+            );
+        }
     }
 }

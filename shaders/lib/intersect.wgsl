@@ -190,10 +190,17 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
 // y = a[ky] - a[kz] d[ky] / d[kz], z = a[kz] / d[kz] (t in the vertex's z
 // plane), for a = vertex - o and kz the dominant axis of d. A triangle is
 // hit where its three edge values have one sign, each allowed to miss zero
-// by EDGE_SLACK of the magnitudes in play, so a ray through a shared edge
+// by EDGE_SLACK of the magnitudes in play where EDGE_TOLERANCE is on (below;
+// exact comparisons on lavapipe), so a ray through a shared edge
 // or vertex finds at least one of the triangles there (Moller-Trumbore and
 // the exact test both left the diagonal of a head-on quad unhit on an
 // NVIDIA GPU, which fuses multiply-adds).
+// Off in pipelines for CPU adapters (Gpu::edge_tolerance_constant): there
+// the edge values are compared exactly, which is watertight on lavapipe,
+// and the tolerance's arithmetic cost a fifth of the default scene's trace
+// pass.
+override EDGE_TOLERANCE: bool = true;
+
 struct TriangleRay {
     o: vec3<f32>,
     rx: vec3<f32>,
@@ -248,15 +255,19 @@ fn triangle_tuv(r: TriangleRay, k: u32, t_min: f32, t_max: f32) -> vec4<f32> {
     let u = c.x * b.y - c.y * b.x;
     let v = a.x * c.y - a.y * c.x;
     let w = b.x * a.y - b.y * a.x;
-    // The tolerance of an edge value grows with its endpoints' size.
-    let la = abs(a.x) + abs(a.y);
-    let lb = abs(b.x) + abs(b.y);
-    let lc = abs(c.x) + abs(c.y);
-    let tu = r.slack * (lb + lc);
-    let tv = r.slack * (lc + la);
-    let tw = r.slack * (la + lb);
-    let facing = (u >= -tu) & (v >= -tv) & (w >= -tw);
-    let away = (u <= tu) & (v <= tv) & (w <= tw);
+    var facing = (u >= 0.0) & (v >= 0.0) & (w >= 0.0);
+    var away = (u <= 0.0) & (v <= 0.0) & (w <= 0.0);
+    if EDGE_TOLERANCE {
+        // The tolerance of an edge value grows with its endpoints' size.
+        let la = abs(a.x) + abs(a.y);
+        let lb = abs(b.x) + abs(b.y);
+        let lc = abs(c.x) + abs(c.y);
+        let tu = r.slack * (lb + lc);
+        let tv = r.slack * (lc + la);
+        let tw = r.slack * (la + lb);
+        facing = (u >= -tu) & (v >= -tv) & (w >= -tw);
+        away = (u <= tu) & (v <= tv) & (w <= tw);
+    }
     let det = u + v + w;
     let inv = 1.0 / det;
     let t = (u * a.z + v * b.z + w * c.z) * inv;

@@ -210,7 +210,11 @@ pub fn plane(
 /// left the diagonal of a head-on quad unhit on an NVIDIA H200 (32 of 3,600
 /// pixels); a tolerance of 1e-6 of |q.x p.y| + |q.y p.x|, smaller than this
 /// one, closed it there.
-/// shaders/lib/intersect.wgsl reads it from the generated lib/limits.wgsl.
+/// shaders/lib/intersect.wgsl reads it from the generated lib/limits.wgsl
+/// and applies it where its override `EDGE_TOLERANCE` is on: not on CPU
+/// adapters, where exact comparisons are watertight and the tolerance cost a
+/// fifth of a trace pass (`Gpu::set_edge_tolerance`). This CPU reference
+/// always applies it.
 pub const EDGE_SLACK: f32 = 1e-6;
 
 /// A ray prepared for [`triangle`]: the ray-triangle test of Woop, Benthin

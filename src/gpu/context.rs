@@ -113,6 +113,9 @@ pub struct Gpu {
     /// listed marked tiles (`render::accumulate`); tests turn it off to
     /// check the dispatch over every tile against it.
     outline_tile_list: AtomicBool,
+    /// Whether pipelines created from now on give the triangle test's edge
+    /// values a tolerance (`set_edge_tolerance`).
+    edge_tolerance: AtomicBool,
 }
 
 const INSTALL_HINT: &str = "no GPU adapter found. celray needs a Vulkan driver; \
@@ -205,6 +208,7 @@ impl Gpu {
     /// A device on a given adapter (the window code picks one that can present).
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
         let summary = AdapterSummary::from_adapter(&adapter);
+        let edge_tolerance = adapter.get_info().device_type != wgpu::DeviceType::Cpu;
         // Ray queries serve the driver acceleration path (render/driver_accel.rs);
         // they are requested wherever offered, so either path can be chosen
         // later on one device. They need the experimental-features token and
@@ -260,6 +264,7 @@ impl Gpu {
             shader_overrides: Mutex::new(None),
             uniform_tables: AtomicBool::new(true),
             outline_tile_list: AtomicBool::new(true),
+            edge_tolerance: AtomicBool::new(edge_tolerance),
         })
     }
 
@@ -285,6 +290,27 @@ impl Gpu {
 
     pub fn outline_tile_list(&self) -> bool {
         self.outline_tile_list.load(Ordering::Relaxed)
+    }
+
+    /// Whether passes created from now on give the triangle test's edge
+    /// values a tolerance (the override constant `EDGE_TOLERANCE` of
+    /// shaders/lib/intersect.wgsl). By default off on CPU adapters and on
+    /// elsewhere: a GPU compiler may fuse multiply-adds and reorder sums, so
+    /// the edge values of two triangles at a shared edge need not be exact
+    /// negations and a ray could slip between them; there each value gets
+    /// `accel::intersect::EDGE_SLACK` of tolerance. Lavapipe's edge values
+    /// are exact negations (the watertight test passes there with exact
+    /// comparisons, as Woop et al.'s argument needs), and the tolerance cost
+    /// a fifth of the default scene's trace pass there. Tests set it to run
+    /// the other path on the same device.
+    pub fn set_edge_tolerance(&self, on: bool) {
+        self.edge_tolerance.store(on, Ordering::Relaxed);
+    }
+
+    /// The `EDGE_TOLERANCE` override for pipelines created now.
+    pub fn edge_tolerance_constant(&self) -> (&'static str, f64) {
+        let on = self.edge_tolerance.load(Ordering::Relaxed);
+        ("EDGE_TOLERANCE", f64::from(u8::from(on)))
     }
 
     /// Whether this device has wgpu's ray queries enabled (the driver

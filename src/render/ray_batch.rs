@@ -99,6 +99,7 @@ impl RayBatch {
                     ("CSG_ENABLED", f64::from(u8::from(csg))),
                     ("ANY_HIT", f64::from(u8::from(self.any_hit))),
                     scene.tables.constant(),
+                    gpu.edge_tolerance_constant(),
                 ];
                 if let Some(driver_layout) = &self.driver {
                     return driver_accel::pipeline(

@@ -184,7 +184,7 @@ fn trace_pipeline(
             module,
             entry_point: Some("main"),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &variant.constants(),
+                constants: &[variant.constants(), vec![gpu.edge_tolerance_constant()]].concat(),
                 ..Default::default()
             },
             cache: None,
