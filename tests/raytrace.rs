@@ -995,7 +995,8 @@ fn height_field_and_rays(turn: u32) -> (Vec<[Vec3; 3]>, Vec<AimedRay>) {
 /// ratio of such values; two triangles may share the hit). The CPU BVH walk
 /// and the GPU ray batch must find t = 1 too, the batch both with exact
 /// edge comparisons (lavapipe's default) and with the tolerance (GPUs'
-/// default, `Gpu::set_edge_tolerance`). What fails it: BVH box tests
+/// default, `Gpu::set_edge_tolerance`). What fails it: Möller-Trumbore
+/// in the CPU reference (a ray through a vertex hit no triangle), BVH box tests
 /// without slack (a ray through a vertex on a box face; CPU and lavapipe),
 /// and on an NVIDIA H200 the triangle test without a tolerance (2 of 217
 /// edge rays of the first field missed), as Möller-Trumbore missed the
