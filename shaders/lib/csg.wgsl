@@ -128,11 +128,12 @@ var<private> csg_crossings: CsgCrossings;
 fn csg_mesh_leaf(st: ptr<private, CsgStore>, p: u32, leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>, base: u32) {
     var count = 0u;
     let inv_d = 1.0 / d;
-    let bounds = load_node(leaf.blas_root);
-    let ray = triangle_ray(o, d, bounds.bounds_min, bounds.bounds_max);
+    let root_node = load_node(leaf.blas_root);
+    let ray = triangle_ray(o, d, root_node.bounds_min, root_node.bounds_max);
     // `trace_stack` above `base`, where the caller's entries end, as intersect_mesh does.
     var sp = base;
-    var current = select(NO_HIT, leaf.blas_root, box_entry(leaf.blas_root, o, inv_d, -CSG_FAR, CSG_FAR, false) < 3.0e38);
+    let root_span = node_span(root_node, o, inv_d, -CSG_FAR, CSG_FAR);
+    var current = select(NO_HIT, leaf.blas_root, root_span.x <= root_span.y);
     loop {
         if current == NO_HIT {
             if sp == base {

@@ -182,6 +182,12 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
     return no_hit();
 }
 
+// Whether triangle_tuv gives its edge values a tolerance. Off in
+// pipelines for CPU adapters (Gpu::edge_tolerance_constant): there the edge
+// values are compared exactly, which is watertight on lavapipe, and the
+// tolerance's arithmetic cost a fifth of the default scene's trace pass.
+override EDGE_TOLERANCE: bool = true;
+
 // A ray prepared for the ray-triangle test of Woop, Benthin and Wald
 // (2013) with a tolerance: the twin of TriangleRay in
 // src/accel/intersect.rs (same formulas, same order; EDGE_SLACK there says
@@ -190,17 +196,11 @@ fn intersect_plane(o: vec3<f32>, d: vec3<f32>, half: vec2<f32>, disk: bool, t_mi
 // y = a[ky] - a[kz] d[ky] / d[kz], z = a[kz] / d[kz] (t in the vertex's z
 // plane), for a = vertex - o and kz the dominant axis of d. A triangle is
 // hit where its three edge values have one sign, each allowed to miss zero
-// by EDGE_SLACK of the magnitudes in play where EDGE_TOLERANCE is on (below;
-// exact comparisons on lavapipe), so a ray through a shared edge
-// or vertex finds at least one of the triangles there (Moller-Trumbore and
+// by EDGE_SLACK of the magnitudes in play where EDGE_TOLERANCE is on
+// (exact comparisons on lavapipe), so a ray through a shared edge or vertex
+// finds at least one of the triangles there (Moller-Trumbore and
 // the exact test both left the diagonal of a head-on quad unhit on an
 // NVIDIA GPU, which fuses multiply-adds).
-// Off in pipelines for CPU adapters (Gpu::edge_tolerance_constant): there
-// the edge values are compared exactly, which is watertight on lavapipe,
-// and the tolerance's arithmetic cost a fifth of the default scene's trace
-// pass.
-override EDGE_TOLERANCE: bool = true;
-
 struct TriangleRay {
     o: vec3<f32>,
     rx: vec3<f32>,

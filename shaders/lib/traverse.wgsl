@@ -51,7 +51,6 @@ fn take_step() -> bool {
 // rounding never culls a box that a ray through a vertex or an edge on its
 // face touches (BOX_EXIT_SLACK: lib/limits.wgsl, generated from
 // src/accel/intersect.rs, which says how large).
-
 fn node_span(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32) -> vec2<f32> {
     let t1 = (node.bounds_min - o) * inv_d;
     let t2 = (node.bounds_max - o) * inv_d;
@@ -104,13 +103,14 @@ fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32
 // uses `trace_stack` above `base`, where the caller's entries end.
 fn intersect_mesh(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, base: u32) -> ObjectHit {
     let inv_d = 1.0 / d;
-    let bounds = load_node(root);
-    let ray = triangle_ray(o, d, bounds.bounds_min, bounds.bounds_max);
+    let root_node = load_node(root);
+    let ray = triangle_ray(o, d, root_node.bounds_min, root_node.bounds_max);
     var best = NO_HIT;
     var best_tuv = vec3<f32>(0.0);
     var t_best = t_max;
     var sp = base;
-    var current = select(NO_HIT, root, box_entry(root, o, inv_d, t_min, t_max, false) < 3.0e38);
+    let root_span = node_span(root_node, o, inv_d, t_min, t_max);
+    var current = select(NO_HIT, root, root_span.x <= root_span.y);
     loop {
         if current == NO_HIT {
             if sp == base {

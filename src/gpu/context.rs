@@ -113,7 +113,7 @@ pub struct Gpu {
     /// listed marked tiles (`render::accumulate`); tests turn it off to
     /// check the dispatch over every tile against it.
     outline_tile_list: AtomicBool,
-    /// Whether pipelines created from now on give the triangle test's edge
+    /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
 }
@@ -292,7 +292,7 @@ impl Gpu {
         self.outline_tile_list.load(Ordering::Relaxed)
     }
 
-    /// Whether passes created from now on give the triangle test's edge
+    /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (the override constant `EDGE_TOLERANCE` of
     /// shaders/lib/intersect.wgsl). By default off on CPU adapters and on
     /// elsewhere: a GPU compiler may fuse multiply-adds and reorder sums, so
@@ -302,7 +302,8 @@ impl Gpu {
     /// are exact negations (the watertight test passes there with exact
     /// comparisons, as Woop et al.'s argument needs), and the tolerance cost
     /// a fifth of the default scene's trace pass there. Tests set it to run
-    /// the other path on the same device.
+    /// the other path on the same device, before creating a pass: passes
+    /// keep the pipelines they have built.
     pub fn set_edge_tolerance(&self, on: bool) {
         self.edge_tolerance.store(on, Ordering::Relaxed);
     }
