@@ -21,19 +21,21 @@ override ANY_HIT: bool = false;
 
 @compute @workgroup_size(RAY_BATCH_WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if i >= arrayLength(&rays) {
-        return;
-    }
+    // Invocations past the end trace the last ray again and write nothing:
+    // the packet walk (lib/trace_packet.wgsl) needs every lane of a subgroup.
+    let n = arrayLength(&rays);
+    let i = min(gid.x, n - 1u);
     steps_left = MAX_TRAVERSAL_STEPS;
     overflowed = false;
     let ray = rays[i];
-    let h = trace(ray.origin.xyz, ray.dir.xyz, ray.origin.w, ray.dir.w, false, ANY_HIT);
+    let h = trace_converged(ray.origin.xyz, ray.dir.xyz, ray.origin.w, ray.dir.w, false, ANY_HIT);
     var out: GpuHit;
     out.t = h.t;
     out.instance = h.instance;
     out.normal = h.normal;
     out.steps = MAX_TRAVERSAL_STEPS - steps_left;
     out.overflow = u32(overflowed);
-    hits[i] = out;
+    if gid.x < n {
+        hits[i] = out;
+    }
 }

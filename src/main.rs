@@ -420,8 +420,13 @@ fn run(cli: Cli) -> Result<()> {
                 } else {
                     "ray queries: no"
                 };
+                let packets = if a.packet_walk {
+                    "packet walk: yes"
+                } else {
+                    "packet walk: no"
+                };
                 out!(
-                    "{}\t{}\t{}\t{}\t{rq}",
+                    "{}\t{}\t{}\t{}\t{rq}\t{packets}",
                     a.name,
                     a.backend,
                     a.device_type,

@@ -137,7 +137,9 @@ fn instanced_ellipsoids_match_the_analytic_silhouette_and_normal() {
 /// random rotations and non-uniform scales, and 10,000 random rays: the GPU
 /// finds the same instance as the CPU reference and t within 1e-4 relative.
 /// A ray may disagree only where it grazes an edge: the CPU reference itself
-/// changes its answer when the ray moves by 1e-4 of the scene size.
+/// changes its answer when the ray moves by 1e-4 of the scene size. Both
+/// walks: the packet walk (lavapipe's default for ray batches) and each ray
+/// on its own (the trace pass's; GPUs' for batches too).
 #[test]
 fn gpu_traversal_matches_cpu_reference_on_random_rays() {
     let gpu = gpu();
@@ -146,12 +148,14 @@ fn gpu_traversal_matches_cpu_reference_on_random_rays() {
     let accel = &buffers.accel;
 
     let rays = random_rays(10_000);
-    let hits = RayBatch::new(&gpu)
-        .unwrap()
-        .trace(&gpu, buffers, &rays)
-        .unwrap();
-
-    assert_hits_match_cpu(accel, &rays, &hits, "GPU");
+    for packet in [true, false] {
+        gpu.set_packet_walk(packet);
+        let hits = RayBatch::new(&gpu)
+            .unwrap()
+            .trace(&gpu, buffers, &rays)
+            .unwrap();
+        assert_hits_match_cpu(accel, &rays, &hits, &format!("GPU (packet {packet})"));
+    }
 }
 
 /// The any-hit ray batch (the shadow-ray query) against the CPU reference:
@@ -165,11 +169,19 @@ fn gpu_traversal_matches_cpu_reference_on_random_rays() {
 /// 10,000, as in the closest-hit check. Both answers must be common (over
 /// 2,000 rays each), or the check would prove little. And the batch must
 /// stop early: fewer traversal steps in all than the closest-hit batch
-/// takes on the same rays (a closest-hit search would pass the rest).
+/// takes on the same rays (a closest-hit search would pass the rest). Both
+/// walks, as in the closest-hit check.
 #[test]
 fn gpu_any_hit_matches_cpu_occlusion() {
     let gpu = gpu();
-    let renderer = buffers_only(&gpu, random_instances(false));
+    for packet in [true, false] {
+        gpu.set_packet_walk(packet);
+        check_any_hit(&gpu);
+    }
+}
+
+fn check_any_hit(gpu: &celray::gpu::Gpu) {
+    let renderer = buffers_only(gpu, random_instances(false));
     let buffers = renderer.scene_buffers();
     let accel = &buffers.accel;
     let rays: Vec<_> = random_rays(10_000)
@@ -180,13 +192,13 @@ fn gpu_any_hit_matches_cpu_occlusion() {
             ray
         })
         .collect();
-    let hits = RayBatch::any_hit(&gpu)
+    let hits = RayBatch::any_hit(gpu)
         .unwrap()
-        .trace(&gpu, buffers, &rays)
+        .trace(gpu, buffers, &rays)
         .unwrap();
-    let closest = RayBatch::new(&gpu)
+    let closest = RayBatch::new(gpu)
         .unwrap()
-        .trace(&gpu, buffers, &rays)
+        .trace(gpu, buffers, &rays)
         .unwrap();
     let steps =
         |h: &[celray::gpu::twins::GpuHit]| h.iter().map(|h| u64::from(h.steps)).sum::<u64>();
@@ -1078,9 +1090,11 @@ fn rays_through_edges_and_vertices_never_slip_through() {
             })
             .collect();
         // Both triangle tests: exact edge comparisons (lavapipe's default)
-        // and with the tolerance (GPUs' default).
-        for tolerance in [false, true] {
+        // and with the tolerance (GPUs' default); both walks (the packet
+        // walk where the device has it, and each ray on its own).
+        for (tolerance, packet) in [(false, true), (false, false), (true, true), (true, false)] {
             gpu.set_edge_tolerance(tolerance);
+            gpu.set_packet_walk(packet);
             let hits = RayBatch::new(&gpu)
                 .unwrap()
                 .trace(&gpu, renderer.scene_buffers(), &gpu_rays)
@@ -1094,7 +1108,7 @@ fn rays_through_edges_and_vertices_never_slip_through() {
                 .collect();
             assert!(
                 bad.is_empty(),
-                "turn {turn}, tolerance {tolerance}: {} of {} GPU rays missed their aim point (ray, aimed at, instance, t): {:?}",
+                "turn {turn}, tolerance {tolerance}, packet {packet}: {} of {} GPU rays missed their aim point (ray, aimed at, instance, t): {:?}",
                 bad.len(),
                 rays.len(),
                 &bad[..bad.len().min(5)]

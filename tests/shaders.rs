@@ -366,6 +366,43 @@ fn driver_variants_validate_and_software_has_no_ray_queries() {
     }
 }
 
+/// The packet variants (lib/trace_packet.wgsl in place of
+/// lib/trace_bvh.wgsl) of the passes that trace rays validate, with the
+/// subgroup operations only they use, and define the same entry points for
+/// the pass to call: `trace` and `trace_converged`.
+#[test]
+fn packet_variants_validate_and_only_they_use_subgroups() {
+    use celray::gpu::shader::{compose_variant, Traversal};
+    for name in ["trace.wgsl", "ray_batch.wgsl"] {
+        let src = compose_variant(name, Traversal::Packet).unwrap_or_else(|e| panic!("{e}"));
+        let module = naga::front::wgsl::parse_str(&src)
+            .unwrap_or_else(|e| panic!("{name} (packet):\n{}", e.emit_to_string(&src)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name} (packet) fails validation: {e:?}"));
+        let software = compose(name).unwrap();
+        for op in [
+            "subgroupBroadcast(",
+            "subgroupAny(",
+            "subgroupAdd(",
+            "subgroupMin(",
+        ] {
+            assert!(src.contains(op), "{name} (packet): {op}");
+            assert!(
+                !software.contains(op),
+                "{name}: the software variant uses {op}"
+            );
+        }
+        for f in ["fn trace(", "fn trace_converged("] {
+            assert_eq!(src.matches(f).count(), 1, "{name} (packet): {f}");
+            assert_eq!(software.matches(f).count(), 1, "{name}: {f}");
+        }
+    }
+}
+
 /// The map word's layout (layer bits, glTF sampler bits) agrees between
 /// src/gpu/twins.rs and shaders/lib/types.wgsl, in both passes' modules.
 #[test]
@@ -715,6 +752,10 @@ fn bindings_match_rust_layouts() {
     }
     assert!(count >= 7, "every pass file is checked");
     for file in ["trace.wgsl", "ray_batch.wgsl"] {
+        let src = compose_variant(file, Traversal::Packet).unwrap();
+        let module = naga::front::wgsl::parse_str(&src)
+            .unwrap_or_else(|e| panic!("{file} (packet):\n{}", e.emit_to_string(&src)));
+        check_bindings(&format!("{file} (packet)"), &module, &rust_groups(file));
         let src = compose_variant(file, Traversal::Driver).unwrap();
         let module = naga::front::wgsl::parse_str(&src)
             .unwrap_or_else(|e| panic!("{file} (driver):\n{}", e.emit_to_string(&src)));
@@ -753,7 +794,7 @@ fn scene_group_is_declared_once() {
         .collect();
     assert_eq!(
         scene_names.len(),
-        19,
+        celray::render::scene_buffers::SCENE_LAYOUT.len(),
         "scene bindings parsed: {scene_names:?}"
     );
     let names_binding = |text: &str, name: &str| {

@@ -247,9 +247,14 @@ fn sheared(r: TriangleRay, p: vec3<f32>) -> vec3<f32> {
 // 4-7% off mesh ray batches and 2-3% off trace passes with meshes
 // (docs/performance-history.md, thirteenth session). Same arithmetic, same answers.
 fn triangle_tuv(r: TriangleRay, k: u32, t_min: f32, t_max: f32) -> vec4<f32> {
-    let a = sheared(r, triangles[k].p0.xyz);
-    let b = sheared(r, triangles[k].p1.xyz);
-    let c = sheared(r, triangles[k].p2.xyz);
+    return corners_tuv(r, triangles[k].p0.xyz, triangles[k].p1.xyz, triangles[k].p2.xyz, t_min, t_max);
+}
+
+// triangle_tuv on the triangle's corners (p0, p1, p2), however they were read.
+fn corners_tuv(r: TriangleRay, p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, t_min: f32, t_max: f32) -> vec4<f32> {
+    let a = sheared(r, p0);
+    let b = sheared(r, p1);
+    let c = sheared(r, p2);
     // Each vertex's weight is the edge value opposite it: twice the signed
     // area of (0, p, q) for the edge p -> q, q.x p.y - q.y p.x.
     let u = c.x * b.y - c.y * b.x;

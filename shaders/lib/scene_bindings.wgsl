@@ -44,6 +44,11 @@ override UNIFORM_TABLES: u32 = 0u;
 @group(0) @binding(16) var<uniform> materials_u: array<GpuMaterial, UNIFORM_MATERIALS>;
 @group(0) @binding(17) var<uniform> csg_ops_u: array<vec4<u32>, UNIFORM_CSG_OP_VECS>;
 @group(0) @binding(18) var<uniform> csg_leaves_u: array<GpuCsgLeaf, UNIFORM_CSG_LEAVES>;
+// The node and triangle tables again as plain words (the same buffers as
+// `nodes` and `triangles`; compute passes only), for the packet walk's loads
+// of one word a lane (lib/trace_packet.wgsl).
+@group(0) @binding(19) var<storage, read> node_words: array<u32>;
+@group(0) @binding(20) var<storage, read> triangle_words: array<u32>;
 
 fn uniform_table(table: u32) -> bool {
     return (UNIFORM_TABLES & table) != 0u;

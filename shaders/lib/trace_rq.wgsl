@@ -105,3 +105,9 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     best.geometric = normalize((to_world * vec4<f32>(object_geometric, 0.0)).xyz);
     return best;
 }
+
+// `trace` where every invocation of the subgroup makes the call together
+// (lib/trace_bvh.wgsl): the same query.
+fn trace_converged(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
+    return trace(o, d, t_min, t_max, skip_meshes, any_hit);
+}

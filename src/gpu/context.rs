@@ -56,21 +56,31 @@ pub struct AdapterSummary {
     /// Whether the adapter offers wgpu's ray queries
     /// (`Features::EXPERIMENTAL_RAY_QUERY`): the driver acceleration path.
     pub ray_queries: bool,
+    /// Whether ray batches can walk the BVH as packets of 8
+    /// (`shaders/lib/trace_packet.wgsl`, written for lavapipe's subgroups:
+    /// a CPU adapter with `Features::SUBGROUP` and subgroups of 8 lanes).
+    pub packet_walk: bool,
 }
 
 impl AdapterSummary {
     fn from_adapter(adapter: &wgpu::Adapter) -> AdapterSummary {
+        let info = adapter.get_info();
         AdapterSummary {
             ray_queries: adapter
                 .features()
                 .contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY),
-            ..AdapterSummary::from_info(&adapter.get_info())
+            packet_walk: info.device_type == wgpu::DeviceType::Cpu
+                && adapter.features().contains(wgpu::Features::SUBGROUP)
+                && info.subgroup_min_size == 8
+                && info.subgroup_max_size == 8,
+            ..AdapterSummary::from_info(&info)
         }
     }
 
     fn from_info(info: &wgpu::AdapterInfo) -> AdapterSummary {
         AdapterSummary {
             ray_queries: false,
+            packet_walk: false,
             name: info.name.clone(),
             backend: format!("{:?}", info.backend),
             device_type: format!("{:?}", info.device_type),
@@ -116,6 +126,10 @@ pub struct Gpu {
     /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
+    /// Whether this device can run the packet walk (`packet_walk`), and
+    /// whether modules made from now on use it (`set_packet_walk`).
+    packet_walk_possible: bool,
+    packet_walk: AtomicBool,
 }
 
 const INSTALL_HINT: &str = "no GPU adapter found. celray needs a Vulkan driver; \
@@ -209,6 +223,7 @@ impl Gpu {
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
         let summary = AdapterSummary::from_adapter(&adapter);
         let edge_tolerance = adapter.get_info().device_type != wgpu::DeviceType::Cpu;
+        let packet_walk_possible = summary.packet_walk;
         // Ray queries serve the driver acceleration path (render/driver_accel.rs);
         // they are requested wherever offered, so either path can be chosen
         // later on one device. They need the experimental-features token and
@@ -216,7 +231,8 @@ impl Gpu {
         // ask more primitives than lavapipe has).
         let wanted = wgpu::Features::TIMESTAMP_QUERY
             | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
-            | wgpu::Features::EXPERIMENTAL_RAY_QUERY;
+            | wgpu::Features::EXPERIMENTAL_RAY_QUERY
+            | wgpu::Features::SUBGROUP;
         let required_features = adapter.features() & wanted;
         let experimental_features =
             if required_features.contains(wgpu::Features::EXPERIMENTAL_RAY_QUERY) {
@@ -265,6 +281,8 @@ impl Gpu {
             uniform_tables: AtomicBool::new(true),
             outline_tile_list: AtomicBool::new(true),
             edge_tolerance: AtomicBool::new(edge_tolerance),
+            packet_walk_possible,
+            packet_walk: AtomicBool::new(packet_walk_possible),
         })
     }
 
@@ -312,6 +330,22 @@ impl Gpu {
     pub fn edge_tolerance_constant(&self) -> (&'static str, f64) {
         let on = self.edge_tolerance.load(Ordering::Relaxed);
         ("EDGE_TOLERANCE", f64::from(u8::from(on)))
+    }
+
+    /// Whether passes made from now on trace with the packet walk
+    /// (`shaders/lib/trace_packet.wgsl`: each 8 invocations of a subgroup
+    /// walk the BVH together, sharing its loads). On by default where it can
+    /// run: CPU adapters with subgroups of 8 (lavapipe on AVX2), where it
+    /// took a quarter off mesh ray batches. A GPU reads memory through
+    /// caches and does not need it. Tests turn it off to check the other
+    /// walk on the same device; it cannot be turned on where it cannot run.
+    pub fn set_packet_walk(&self, on: bool) {
+        self.packet_walk
+            .store(on && self.packet_walk_possible, Ordering::Relaxed);
+    }
+
+    pub fn packet_walk(&self) -> bool {
+        self.packet_walk.load(Ordering::Relaxed)
     }
 
     /// Whether this device has wgpu's ray queries enabled (the driver

@@ -133,6 +133,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
         "lib/trace_rq.wgsl",
         include_str!("../../shaders/lib/trace_rq.wgsl"),
     ),
+    (
+        "lib/trace_packet.wgsl",
+        include_str!("../../shaders/lib/trace_packet.wgsl"),
+    ),
     ("lib/csg.wgsl", include_str!("../../shaders/lib/csg.wgsl")),
     (
         "lib/outline.wgsl",
@@ -242,15 +246,23 @@ pub enum Traversal {
     /// The driver's acceleration structures through wgpu ray queries
     /// (`lib/trace_rq.wgsl`; needs `Features::EXPERIMENTAL_RAY_QUERY`).
     Driver,
+    /// celray's own BVH, walked by each subgroup of 8 invocations together
+    /// (`lib/trace_packet.wgsl`; needs `Features::SUBGROUP` and subgroups
+    /// of 8: [`crate::gpu::Gpu::packet_walk`]). The ray batch uses it where
+    /// it can run.
+    Packet,
 }
 
 impl Traversal {
     /// The include this traversal puts in place of `lib/trace_bvh.wgsl`,
     /// and the `enable` line it needs at the top of the module.
-    fn swap(self) -> Option<(&'static str, &'static str)> {
+    fn swap(self) -> Option<(&'static str, Option<&'static str>)> {
         match self {
             Traversal::Software => None,
-            Traversal::Driver => Some(("lib/trace_rq.wgsl", "enable wgpu_ray_query;")),
+            Traversal::Driver => Some(("lib/trace_rq.wgsl", Some("enable wgpu_ray_query;"))),
+            // naga (wgpu 30) takes subgroup built-ins without a directive
+            // and rejects `enable subgroups;`.
+            Traversal::Packet => Some(("lib/trace_packet.wgsl", None)),
         }
     }
 }
@@ -295,7 +307,7 @@ fn compose_mapped<'a>(
     let mut origins = Vec::new();
     let mut included = Vec::new();
     let swap = traversal.swap();
-    if let Some((_, enable)) = swap {
+    if let Some((_, Some(enable))) = swap {
         // Enable directives must come before any declaration.
         out.push_str(enable);
         out.push('\n');

@@ -23,6 +23,15 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 2] = [
     read_write_storage_entry(1),                             // hits
 ];
 
+/// The traversal of the software variant on `gpu`.
+fn software(gpu: &Gpu) -> Traversal {
+    if gpu.packet_walk() {
+        Traversal::Packet
+    } else {
+        Traversal::Software
+    }
+}
+
 pub struct RayBatch {
     module: wgpu::ShaderModule,
     scene_layout: wgpu::BindGroupLayout,
@@ -38,14 +47,21 @@ pub struct RayBatch {
 }
 
 impl RayBatch {
-    /// The software variant: rays walk celray's own BVH.
+    /// The software variant: rays walk celray's own BVH, as packets of 8
+    /// where the device can ([`Gpu::packet_walk`]), else each on its own.
     pub fn new(gpu: &Gpu) -> Result<RayBatch, GpuError> {
-        Self::with_traversal(gpu, Traversal::Software)
+        Self::with_traversal(gpu, software(gpu))
     }
 
     /// The variant that walks `traversal`'s structures ([`Traversal::Driver`]
     /// needs ray queries; trace with [`RayBatch::trace_driver_timed`]).
     pub fn with_traversal(gpu: &Gpu, traversal: Traversal) -> Result<RayBatch, GpuError> {
+        if traversal == Traversal::Packet && !gpu.packet_walk() {
+            return Err(GpuError::Unsupported(format!(
+                "the packet walk needs a CPU adapter with subgroups of 8 ({})",
+                gpu.summary
+            )));
+        }
         Self::build(gpu, traversal, false)
     }
 
@@ -53,7 +69,7 @@ impl RayBatch {
     /// the trace pass's shadow rays do: a hit's `instance` says the ray is
     /// blocked, its `t` is where (not necessarily the nearest hit).
     pub fn any_hit(gpu: &Gpu) -> Result<RayBatch, GpuError> {
-        Self::build(gpu, Traversal::Software, true)
+        Self::build(gpu, software(gpu), true)
     }
 
     fn build(gpu: &Gpu, traversal: Traversal, any_hit: bool) -> Result<RayBatch, GpuError> {

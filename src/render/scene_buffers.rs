@@ -41,7 +41,7 @@ const SCENE_VISIBILITY: wgpu::ShaderStages =
 
 /// The scene's bind group layout, binding by binding as
 /// `shaders/lib/scene_bindings.wgsl` declares it.
-pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 19] = [
+pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 21] = [
     read_only_storage_entry(0, SCENE_VISIBILITY), // instances
     read_only_storage_entry(1, SCENE_VISIBILITY), // materials
     read_only_storage_entry(2, SCENE_VISIBILITY), // lights
@@ -62,6 +62,10 @@ pub const SCENE_LAYOUT: [wgpu::BindGroupLayoutEntry; 19] = [
     uniform_entry(Table::Materials.binding(), SCENE_VISIBILITY), // materials_u
     uniform_entry(Table::CsgOps.binding(), SCENE_VISIBILITY), // csg_ops_u
     uniform_entry(Table::CsgLeaves.binding(), SCENE_VISIBILITY), // csg_leaves_u
+    // The packet walk's word views of nodes and triangles (the same
+    // buffers; shaders/lib/trace_packet.wgsl).
+    read_only_storage_entry(19, wgpu::ShaderStages::COMPUTE), // node_words
+    read_only_storage_entry(20, wgpu::ShaderStages::COMPUTE), // triangle_words
 ];
 
 /// The scene's bind group layout object. wgpu pools layouts by their
@@ -766,6 +770,12 @@ impl SceneBuffers {
                 binding: t.binding(),
                 resource: uniform_copies[t as usize].as_entire_binding(),
             }));
+            for (binding, buffer) in [(19, &nodes), (20, &triangles)] {
+                entries.push(wgpu::BindGroupEntry {
+                    binding,
+                    resource: buffer.as_entire_binding(),
+                });
+            }
             let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("scene bind group"),
                 layout: &scene_layout(gpu),
