@@ -100,24 +100,24 @@ fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>, leaving: u32) -> bo
 
 // Whether the shadow ray from p (unit normal n) towards light i finds
 // something in the way; a surface facing away from a light casts no ray
-// (it is unlit by it anyway), nor does one that nothing can block.
-// `leaving`: the instance hit from outside at p, else NO_HIT.
-fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>, leaving: u32) -> bool {
+// (it is unlit by it anyway), nor does one that nothing can block, nor an
+// invocation whose ray has ended (`going` false). `leaving`: the instance
+// hit from outside at p, else NO_HIT. Every invocation calls this together
+// (trace_masked).
+fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>, leaving: u32, going: bool) -> bool {
     let ls = sample_light(i, light, p);
-    if light.radiance.w <= 0.0 || dot(n, ls.to_light) <= 0.0 {
-        return false;
-    }
     let origin = p + n * frame.ray_epsilon;
-    if !shadow_may_be_blocked(i, origin, ls.to_light, leaving) {
-        return false;
+    var wants = going && light.radiance.w > 0.0 && dot(n, ls.to_light) > 0.0;
+    if wants {
+        wants = shadow_may_be_blocked(i, origin, ls.to_light, leaving);
     }
-    return trace(origin, ls.to_light, 0.0, ls.distance, false, true).instance != NO_HIT;
+    return trace_masked(wants, origin, ls.to_light, 0.0, ls.distance, false, true).instance != NO_HIT;
 }
 
 // Ambient, rim and every light, with a shadow ray per shadow-casting light
 // the surface faces. The shadow rays go first (bit i of `blocked`: light i
 // is blocked), then the lights are summed in their order.
-fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: u32) -> vec3<f32> {
+fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: u32, going: bool) -> vec3<f32> {
     var c = shade_ambient(m, n, v, frame.ambient.rgb);
     var blocked = 0u;
     if SHADOWS_ENABLED {
@@ -125,7 +125,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: 
         for (var k = 0u; k < countOneBits(SHADOW_LIGHTS); k++) {
             let i = firstTrailingBit(rest);
             rest &= rest - 1u;
-            if i < frame.light_count && shadowed(i, lights[i], p, n, leaving) {
+            if i < frame.light_count && shadowed(i, lights[i], p, n, leaving, going) {
                 blocked |= 1u << i;
             }
         }
@@ -136,7 +136,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: 
         let ls = sample_light(i, light, p);
         var visible = i >= 32u || (blocked & (1u << i)) == 0u;
         if SHADOWS_ENABLED && SHADOW_LIGHTS_FROM_32 && i >= 32u {
-            visible = !shadowed(i, light, p, n, leaving);
+            visible = !shadowed(i, light, p, n, leaving, going);
         }
         if visible {
             c += shade_light(m, n, v, ls.to_light, ls.radiance);
@@ -281,10 +281,12 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     let lane = li % 8u;
     let blocks_per_row = TRACE_WORKGROUP / 4u;
     let local = vec2<u32>(4u * (group % blocks_per_row) + lane % 4u, 2u * (group / blocks_per_row) + lane / 4u);
-    let gid = wg.xy * TRACE_WORKGROUP + local;
-    if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
-        return;
-    }
+    // Invocations past the image's edge trace its last row or column again
+    // and write nothing: every invocation makes each trace call together
+    // (trace_converged and trace_masked, lib/trace_bvh.wgsl), which the
+    // packet walk needs.
+    let inside = all(wg.xy * TRACE_WORKGROUP + local < frame.size_px);
+    let gid = min(wg.xy * TRACE_WORKGROUP + local, frame.size_px - 1u);
     steps_left = MAX_INVOCATION_STEPS;
     overflowed = false;
     let pixel = vec2<i32>(gid.xy);
@@ -321,7 +323,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     var from_raster = false;
 
     let hybrid = frame.mode == RENDER_MODE_HYBRID;
-    var hit = trace(o, d, 0.0, 3.0e38, hybrid, false);
+    var hit = trace_converged(o, d, 0.0, 3.0e38, hybrid, false);
     if hybrid {
         let id = textureLoad(raster_id, pixel, 0).x;
         if id != 0u {
@@ -347,11 +349,19 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
 
     // Mirror reflections: each bounce keeps (1 - reflectivity) of its own
     // shading and passes the rest on to the reflected ray.
+    // `going`: this pixel's ray goes on (it hit something, and every surface
+    // so far reflects). The invocations go round the loop together while any
+    // one's ray goes on, so that they trace the shadow and reflection rays
+    // together (trace_masked), those whose ray has ended asking for none.
     var colour = vec3<f32>(0.0);
     var weight = 1.0;
+    var going = true;
     for (var bounce = 0u; bounce <= frame.max_bounces; bounce++) {
-        if hit.instance == NO_HIT {
+        if going && hit.instance == NO_HIT {
             colour += weight * frame.background.rgb;
+            going = false;
+        }
+        if !any_lane(going) {
             break;
         }
         let p = o + d * hit.t;
@@ -381,16 +391,23 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         // The instance whose outside the shadow rays leave (none when the
         // ray hit a surface from behind).
         let leaving = select(NO_HIT, hit.instance, dot(hit.geometric, d) < 0.0);
-        colour += weight * (1.0 - reflectivity) * shade_hit(p, n, -d, m, leaving);
-        if reflectivity <= 0.0 {
+        let shaded = shade_hit(p, n, -d, m, leaving, going);
+        if going {
+            colour += weight * (1.0 - reflectivity) * shaded;
+        }
+        going = going && reflectivity > 0.0;
+        if !any_lane(going) {
             break;
         }
         weight *= reflectivity;
         o = p + n * frame.ray_epsilon;
         d = glossy_direction(reflect(d, n), n, m.roughness, gid.y * frame.size_px.x + gid.x, bounce);
-        hit = trace(o, d, 0.0, 3.0e38, false, false);
+        hit = trace_masked(going, o, d, 0.0, 3.0e38, false, false);
     }
 
+    if !inside {
+        return;
+    }
     if overflowed {
         // Never silent: a loud colour in the image and a count for the tests.
         colour = vec3<f32>(1.0, 0.0, 1.0);

@@ -836,7 +836,10 @@ fn an_empty_scene_shows_only_its_background() {
 /// edit, written in place into both copies (the edit must change the
 /// image, or the second check would prove nothing). Any wrong offset in a
 /// copy's packing (two CSG instructions to a
-/// vec4) or a copy left stale moves some pixel.
+/// vec4) or a copy left stale moves some pixel. With every table in storage
+/// the trace pass walks the BVH as packets where the device can (lavapipe;
+/// `SceneBuffers::packet_trace`), so the same comparison also holds the
+/// packet walk to the per-ray walk's images, byte for byte.
 #[test]
 fn uniform_table_copies_draw_what_the_storage_buffers_draw() {
     use celray::gpu::uniform_tables::Table;
@@ -874,6 +877,13 @@ fn uniform_table_copies_draw_what_the_storage_buffers_draw() {
                 gpu.set_uniform_tables(on);
                 let mut r = rendered(&gpu, scene.clone(), settings.clone());
                 let tables = r.scene_buffers().tables;
+                // Without the copies the trace pass walks packets where the
+                // device can: the two walks must draw the same image too.
+                assert_eq!(
+                    r.scene_buffers().packet_trace,
+                    !on && gpu.packet_walk(),
+                    "{file}: the walk the trace pass chose"
+                );
                 let before = r.read_srgb8(&gpu).unwrap();
                 r.update_scene(&gpu, edited.clone()).unwrap();
                 r.render_to_convergence(&gpu, |_, _| {}).unwrap();

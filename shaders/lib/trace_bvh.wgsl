@@ -11,3 +11,18 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
 fn trace_converged(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
     return trace_each(o, d, t_min, t_max, skip_meshes, any_hit);
 }
+
+// `trace` for the invocations where `wants` holds, the others getting a
+// miss. Like trace_converged, for calls every invocation makes together.
+fn trace_masked(wants: bool, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
+    if !wants {
+        return trace_miss(t_max);
+    }
+    return trace_each(o, d, t_min, t_max, skip_meshes, any_hit);
+}
+
+// Whether `b` holds for any invocation of the subgroup making this call
+// together. Each invocation here walks alone: its own `b`.
+fn any_lane(b: bool) -> bool {
+    return b;
+}

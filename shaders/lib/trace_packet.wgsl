@@ -270,3 +270,23 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     }
     return trace_each(o, d, t_min, t_max, skip_meshes, any_hit);
 }
+
+// `trace` for the invocations where `wants` holds, the others getting a
+// miss, called by every invocation of the subgroup together: one packet
+// walk, which the others join with an empty interval (they ask for no
+// node), and none where no invocation wants one.
+fn trace_masked(wants: bool, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
+    if !subgroupAny(wants) {
+        return trace_miss(t_max);
+    }
+    var hit = trace_converged(o, d, t_min, select(-1.0, t_max, wants), skip_meshes, any_hit);
+    if !wants {
+        hit.t = t_max;
+    }
+    return hit;
+}
+
+// Whether `b` holds for any invocation of the subgroup.
+fn any_lane(b: bool) -> bool {
+    return subgroupAny(b);
+}

@@ -111,3 +111,17 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
 fn trace_converged(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
     return trace(o, d, t_min, t_max, skip_meshes, any_hit);
 }
+
+// `trace` for the invocations where `wants` holds (lib/trace_bvh.wgsl).
+fn trace_masked(wants: bool, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
+    if !wants {
+        return trace_miss(t_max);
+    }
+    return trace(o, d, t_min, t_max, skip_meshes, any_hit);
+}
+
+// Whether `b` holds for any invocation making this call together: its own
+// (lib/trace_bvh.wgsl).
+fn any_lane(b: bool) -> bool {
+    return b;
+}

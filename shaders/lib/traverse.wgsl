@@ -163,6 +163,14 @@ fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, 
     return intersect_analytic(s.kind, s.params, o, d, t_min, t_max);
 }
 
+// No hit within t_max.
+fn trace_miss(t_max: f32) -> TraceHit {
+    var h: TraceHit;
+    h.t = t_max;
+    h.instance = NO_HIT;
+    return h;
+}
+
 // The closest hit of the world ray (o, d) in (t_min, t_max), each
 // invocation walking on its own. With `any_hit`, returns the first hit found
 // (shadow rays). With `skip_meshes`, triangle meshes are ignored (hybrid

@@ -178,6 +178,14 @@ pub struct SceneBuffers {
     /// Which tables the passes read from their uniform copies
     /// ([`crate::gpu::uniform_tables`]): part of every pipeline's key.
     pub tables: UniformTables,
+    /// Whether the trace pass walks this scene's BVH as packets
+    /// (`shaders/lib/trace_packet.wgsl`): where the device can
+    /// ([`Gpu::packet_walk`]) and the top-level tree's nodes are read from
+    /// storage (no uniform copy holds them: over about 1,000 instances).
+    /// There the packet walk measured faster; where a copy holds them, each
+    /// ray walking alone did (docs/performance-history.md, nineteenth
+    /// session).
+    pub packet_trace: bool,
     /// The uniform copies, in [`Table::ALL`]'s order; a table that does not
     /// fit binds a zero-filled buffer of the same size that nothing reads.
     uniform_copies: Vec<wgpu::Buffer>,
@@ -718,6 +726,8 @@ impl SceneBuffers {
             ),
             false => UniformTables::NONE,
         };
+        let packet_trace =
+            gpu.packet_walk() && !tables.contains(Table::Nodes) && !tables.top_nodes_only();
         // The contents of the uniform copies (64 KiB at most each): whole
         // tables, or the top-level tree's nodes (the first ones).
         let copies: Vec<Option<Vec<u8>>> = Table::ALL
@@ -798,6 +808,7 @@ impl SceneBuffers {
                 shadow_cull,
                 shadow_cells,
                 tables,
+                packet_trace,
                 uniform_copies,
                 accel,
                 vertices: gpu

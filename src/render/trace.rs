@@ -54,6 +54,9 @@ pub struct TracePass {
     pipelines: HashMap<Variant, wgpu::ComputePipeline>,
     variant: Variant,
     module: wgpu::ShaderModule,
+    /// The pass composed with `lib/trace_packet.wgsl`, where the device can
+    /// run it ([`Gpu::packet_walk`]): variants with `packet` use it.
+    packet_module: Option<wgpu::ShaderModule>,
     pipeline_layout: wgpu::PipelineLayout,
     scene_layout: wgpu::BindGroupLayout,
     target_layout: wgpu::BindGroupLayout,
@@ -103,6 +106,9 @@ pub struct Variant {
     lights: LightLayout,
     /// The tables read from their uniform copies.
     tables: UniformTables,
+    /// The BVH walked as packets of 8 (`SceneBuffers::packet_trace`;
+    /// `lib/trace_packet.wgsl`), else each ray on its own.
+    packet: bool,
 }
 
 impl Variant {
@@ -132,6 +138,7 @@ impl Variant {
             shading: ShadingVariant::of(&scene.materials, &scene.lights),
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
+            packet: buffers.packet_trace,
         }
     }
 
@@ -194,6 +201,14 @@ fn trace_pipeline(
 impl TracePass {
     pub fn new(gpu: &Gpu) -> Result<TracePass, GpuError> {
         let module = shader::create_module(gpu, "trace.wgsl")?;
+        let packet_module = match gpu.packet_walk() {
+            true => Some(shader::create_module_variant(
+                gpu,
+                "trace.wgsl",
+                Traversal::Packet,
+            )?),
+            false => None,
+        };
         gpu.scoped(|| {
             let scene_layout = scene_layout(gpu);
             let target_layout =
@@ -222,6 +237,7 @@ impl TracePass {
                 pipelines: HashMap::new(),
                 variant: Variant::default(),
                 module,
+                packet_module,
                 pipeline_layout: layout,
                 scene_layout,
                 target_layout,
@@ -288,7 +304,17 @@ impl TracePass {
                 }
             }
         } else if !self.pipelines.contains_key(&variant) {
-            let pipeline = trace_pipeline(gpu, &self.pipeline_layout, &self.module, variant);
+            let module = match (variant.packet, &self.packet_module) {
+                (false, _) => &self.module,
+                (true, Some(packet)) => packet,
+                (true, None) => {
+                    return Err(GpuError::Unsupported(format!(
+                        "a packet-walk trace variant on a device without it ({})",
+                        gpu.summary
+                    )))
+                }
+            };
+            let pipeline = trace_pipeline(gpu, &self.pipeline_layout, module, variant);
             self.pipelines.insert(variant, pipeline);
         }
         Ok(())
