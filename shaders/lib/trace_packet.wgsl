@@ -66,6 +66,25 @@ fn packet_load_node(i: u32) -> PacketNode {
     return packet_node_words(node_words[i * NODE_WORDS + packet_lane]);
 }
 
+// Instance i's object_from_world (i the same on every lane). From storage
+// (the copies' table is too big: the case the trace pass walks packets
+// for) the lanes share out its first three rows' 12 words, else each lane
+// reads the uniform copy.
+fn packet_object_from_world(i: u32) -> mat4x4<f32> {
+    if uniform_table(TABLE_INSTANCES) {
+        return load_instance(i).object_from_world;
+    }
+    // Lane k: columns k / 4 and 2 + k / 4, row k % 4 (rows 3 unused).
+    let a = instances[i].object_from_world[packet_lane >> 2u][packet_lane & 3u];
+    let b = instances[i].object_from_world[2u + (packet_lane >> 2u)][packet_lane & 3u];
+    return mat4x4<f32>(
+        vec4<f32>(subgroupBroadcast(a, 0u), subgroupBroadcast(a, 1u), subgroupBroadcast(a, 2u), 0.0),
+        vec4<f32>(subgroupBroadcast(a, 4u), subgroupBroadcast(a, 5u), subgroupBroadcast(a, 6u), 0.0),
+        vec4<f32>(subgroupBroadcast(b, 0u), subgroupBroadcast(b, 1u), subgroupBroadcast(b, 2u), 0.0),
+        vec4<f32>(subgroupBroadcast(b, 4u), subgroupBroadcast(b, 5u), subgroupBroadcast(b, 6u), 1.0),
+    );
+}
+
 // One step of the packet's descent from the inner node whose children start
 // at `first` (the two children are 16 consecutive words): a child is next
 // when any lane's ray enters its box within that lane's (t_min, t_max); with
@@ -218,7 +237,7 @@ fn trace_packet(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes:
             if skip_meshes && s.kind == SHAPE_MESH {
                 continue;
             }
-            let m = load_instance(inst).object_from_world;
+            let m = packet_object_from_world(inst);
             let ol = (m * vec4<f32>(o, 1.0)).xyz;
             let dl = (m * vec4<f32>(d, 0.0)).xyz;
             var h: ObjectHit;
