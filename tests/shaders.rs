@@ -360,16 +360,18 @@ fn driver_variants_validate_and_software_has_no_ray_queries() {
             !software.contains("rayQuery") && !software.contains("acceleration_structure"),
             "{name}: the software variant carries ray-query code"
         );
-        // Both define the one `trace` the pass calls.
-        assert_eq!(src.matches("fn trace(").count(), 1, "{name} (driver)");
-        assert_eq!(software.matches("fn trace(").count(), 1, "{name}");
+        // Both define the one set of trace functions the pass calls.
+        for f in ["fn trace_converged(", "fn trace_masked(", "fn any_lane("] {
+            assert_eq!(src.matches(f).count(), 1, "{name} (driver): {f}");
+            assert_eq!(software.matches(f).count(), 1, "{name}: {f}");
+        }
     }
 }
 
 /// The packet variants (lib/trace_packet.wgsl in place of
 /// lib/trace_bvh.wgsl) of the passes that trace rays validate, with the
-/// subgroup operations only they use, and define the same entry points for
-/// the pass to call: `trace` and `trace_converged`.
+/// subgroup operations only they use, and define the same functions for
+/// the pass to call: `trace_converged`, `trace_masked` and `any_lane`.
 #[test]
 fn packet_variants_validate_and_only_they_use_subgroups() {
     use celray::gpu::shader::{compose_variant, Traversal};
@@ -396,7 +398,7 @@ fn packet_variants_validate_and_only_they_use_subgroups() {
                 "{name}: the software variant uses {op}"
             );
         }
-        for f in ["fn trace(", "fn trace_converged("] {
+        for f in ["fn trace_converged(", "fn trace_masked(", "fn any_lane("] {
             assert_eq!(src.matches(f).count(), 1, "{name} (packet): {f}");
             assert_eq!(software.matches(f).count(), 1, "{name}: {f}");
         }

@@ -17,15 +17,15 @@
 // loops a step instead of 14.
 //
 // The walk needs all 8 invocations of the subgroup in it at once (a lane
-// that is not there loads nothing): `trace_converged` is for calls that all
-// of them make together; `trace` checks with a ballot and otherwise walks
-// each ray on its own (`trace_each`). The trace pass does not use this
-// variant: there it measured slower than each ray walking alone
-// (docs/performance-history.md, nineteenth session).
+// that is not there loads nothing), so the passes make every trace call
+// together (lib/trace_bvh.wgsl). The ray batch walks packets wherever the
+// device can; the trace pass only where the top-level tree is in storage
+// (SceneBuffers::packet_trace): on the shipped scenes its packet walk
+// measured slower than each ray walking alone (docs/performance-history.md,
+// nineteenth session).
 
 // The subgroup size this walk is written for (Gpu::packet_walk checks it).
 const PACKET_LANES: u32 = 8u;
-const PACKET_FULL: u32 = (1u << PACKET_LANES) - 1u;
 // BvhNode and GpuTriangle sizes in words.
 const NODE_WORDS: u32 = 8u;
 const TRIANGLE_WORDS: u32 = 24u;
@@ -272,26 +272,16 @@ fn trace_packet(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes:
     return best;
 }
 
-// `trace` where every invocation of the subgroup makes the call together
-// (none has returned or branched away): the packet walk.
+// The closest or any hit of the world ray (o, d) in (t_min, t_max), every
+// invocation of the subgroup making the call together: the packet walk.
 fn trace_converged(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
     packet_lane = subgroupExclusiveAdd(1u);
     packet_steps = subgroupMin(steps_left);
     return trace_packet(o, d, t_min, t_max, skip_meshes, any_hit);
 }
 
-// The packet walk where all 8 lanes of the subgroup are here, else each
-// lane's own walk. A kernel that has both pays for both: the ray batch calls
-// trace_converged only (docs/performance-history.md).
-fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
-    if subgroupBallot(true).x == PACKET_FULL {
-        return trace_converged(o, d, t_min, t_max, skip_meshes, any_hit);
-    }
-    return trace_each(o, d, t_min, t_max, skip_meshes, any_hit);
-}
-
-// `trace` for the invocations where `wants` holds, the others getting a
-// miss, called by every invocation of the subgroup together: one packet
+// trace_converged for the invocations where `wants` holds, the others
+// getting a miss: one packet
 // walk, which the others join with an empty interval (they ask for no
 // node), and none where no invocation wants one.
 fn trace_masked(wants: bool, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {

@@ -106,13 +106,13 @@ fn trace(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, 
     return best;
 }
 
-// `trace` where every invocation of the subgroup makes the call together
-// (lib/trace_bvh.wgsl): the same query.
+// `trace` as the passes call it (lib/trace_bvh.wgsl): the same query.
 fn trace_converged(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
     return trace(o, d, t_min, t_max, skip_meshes, any_hit);
 }
 
-// `trace` for the invocations where `wants` holds (lib/trace_bvh.wgsl).
+// `trace` for the invocations where `wants` holds, the others getting a
+// miss (lib/trace_bvh.wgsl).
 fn trace_masked(wants: bool, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
     if !wants {
         return trace_miss(t_max);

@@ -21,7 +21,7 @@ var<private> steps_left: u32;
 // entries). A private array in each query would be zero-filled at each of
 // its calls; this one is filled once per invocation (docs/performance-history.md).
 var<private> trace_stack: array<u32, TRAVERSAL_STACK>;
-// The triangle (index into `triangles`) of the closest hit `trace` last
+// The triangle (index into `triangles`) of the closest hit a trace last
 // returned, when that hit is on a triangle mesh (texture coordinates).
 var<private> hit_triangle: u32;
 var<private> mesh_triangle: u32;
@@ -230,8 +230,9 @@ fn trace_each(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: b
     return best;
 }
 
-// The top-level `trace` (closest or any hit of a world ray): `trace_each`
-// above (lib/trace_bvh.wgsl); in the packet variant of a pass, the packet
-// walk of lib/trace_packet.wgsl; in the driver variant, the wgpu ray query
-// of lib/trace_rq.wgsl (src/gpu/shader.rs swaps the include).
+// The top-level trace the passes call (`trace_converged`, `trace_masked`,
+// `any_lane`; closest or any hit of a world ray): `trace_each` above
+// (lib/trace_bvh.wgsl); in the packet variant of a pass, the packet walk of
+// lib/trace_packet.wgsl; in the driver variant, the wgpu ray query of
+// lib/trace_rq.wgsl (src/gpu/shader.rs swaps the include).
 #include "lib/trace_bvh.wgsl"

@@ -126,9 +126,9 @@ pub struct Gpu {
     /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
-    /// Whether this device can run the packet walk (`packet_walk`), and
-    /// whether modules made from now on use it (`set_packet_walk`).
-    packet_walk_possible: bool,
+    /// Whether passes made from now on use the packet walk
+    /// (`set_packet_walk`; never where `summary.packet_walk` says it
+    /// cannot run).
     packet_walk: AtomicBool,
 }
 
@@ -223,7 +223,6 @@ impl Gpu {
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
         let summary = AdapterSummary::from_adapter(&adapter);
         let edge_tolerance = adapter.get_info().device_type != wgpu::DeviceType::Cpu;
-        let packet_walk_possible = summary.packet_walk;
         // Ray queries serve the driver acceleration path (render/driver_accel.rs);
         // they are requested wherever offered, so either path can be chosen
         // later on one device. They need the experimental-features token and
@@ -270,6 +269,7 @@ impl Gpu {
             }
         }));
         log::info!("adapter: {summary}");
+        let packet_walk = AtomicBool::new(summary.packet_walk);
         Ok(Gpu {
             instance,
             adapter,
@@ -281,8 +281,7 @@ impl Gpu {
             uniform_tables: AtomicBool::new(true),
             outline_tile_list: AtomicBool::new(true),
             edge_tolerance: AtomicBool::new(edge_tolerance),
-            packet_walk_possible,
-            packet_walk: AtomicBool::new(packet_walk_possible),
+            packet_walk,
         })
     }
 
@@ -341,7 +340,7 @@ impl Gpu {
     /// walk on the same device; it cannot be turned on where it cannot run.
     pub fn set_packet_walk(&self, on: bool) {
         self.packet_walk
-            .store(on && self.packet_walk_possible, Ordering::Relaxed);
+            .store(on && self.summary.packet_walk, Ordering::Relaxed);
     }
 
     pub fn packet_walk(&self) -> bool {

@@ -237,7 +237,8 @@ impl ShaderOverrides {
 }
 
 /// How a pass that traces rays walks the scene: which file serves
-/// `lib/trace_bvh.wgsl`'s `trace` function.
+/// `lib/trace_bvh.wgsl`'s functions (`trace_converged`, `trace_masked`,
+/// `any_lane`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Traversal {
     /// celray's own two-level BVH, walked in WGSL (any adapter).

@@ -54,8 +54,8 @@ pub struct TracePass {
     pipelines: HashMap<Variant, wgpu::ComputePipeline>,
     variant: Variant,
     module: wgpu::ShaderModule,
-    /// The pass composed with `lib/trace_packet.wgsl`, where the device can
-    /// run it ([`Gpu::packet_walk`]): variants with `packet` use it.
+    /// The pass composed with `lib/trace_packet.wgsl`, made the first time a
+    /// variant with `packet` is selected.
     packet_module: Option<wgpu::ShaderModule>,
     pipeline_layout: wgpu::PipelineLayout,
     scene_layout: wgpu::BindGroupLayout,
@@ -201,14 +201,6 @@ fn trace_pipeline(
 impl TracePass {
     pub fn new(gpu: &Gpu) -> Result<TracePass, GpuError> {
         let module = shader::create_module(gpu, "trace.wgsl")?;
-        let packet_module = match gpu.packet_walk() {
-            true => Some(shader::create_module_variant(
-                gpu,
-                "trace.wgsl",
-                Traversal::Packet,
-            )?),
-            false => None,
-        };
         gpu.scoped(|| {
             let scene_layout = scene_layout(gpu);
             let target_layout =
@@ -237,7 +229,7 @@ impl TracePass {
                 pipelines: HashMap::new(),
                 variant: Variant::default(),
                 module,
-                packet_module,
+                packet_module: None,
                 pipeline_layout: layout,
                 scene_layout,
                 target_layout,
@@ -304,15 +296,20 @@ impl TracePass {
                 }
             }
         } else if !self.pipelines.contains_key(&variant) {
-            let module = match (variant.packet, &self.packet_module) {
-                (false, _) => &self.module,
-                (true, Some(packet)) => packet,
-                (true, None) => {
+            let module = if variant.packet {
+                if !gpu.packet_walk() {
                     return Err(GpuError::Unsupported(format!(
                         "a packet-walk trace variant on a device without it ({})",
                         gpu.summary
-                    )))
+                    )));
                 }
+                let packet = match self.packet_module.take() {
+                    Some(m) => m,
+                    None => shader::create_module_variant(gpu, "trace.wgsl", Traversal::Packet)?,
+                };
+                &*self.packet_module.insert(packet)
+            } else {
+                &self.module
             };
             let pipeline = trace_pipeline(gpu, &self.pipeline_layout, module, variant);
             self.pipelines.insert(variant, pipeline);
