@@ -55,25 +55,38 @@ override GLOSSY_ENABLED: bool = true;
 // shadow test under a run-time condition cost its code for every light).
 override SHADOW_LIGHTS: u32 = 0xffffffffu;
 override SHADOW_LIGHTS_FROM_32: bool = true;
+// Whether a shadow ray may be answered by its receiver's occluder list
+// (shadow_query): false where no list can exist (no directional light of
+// the first 8 casts shadows, or every instance is a mesh, a CSG solid or
+// a plane).
+override SHADOW_LISTS: bool = true;
 
 // The normal facing the ray: two-sided surfaces are shaded on both sides.
 fn facing_normal(h: TraceHit, d: vec3<f32>) -> vec3<f32> {
     return select(h.normal, -h.normal, dot(h.geometric, d) > 0.0);
 }
 
-// Whether the shadow ray from o along l (towards light i) may meet
-// anything; false only where it provably meets nothing, so a ray skipped
-// for it would have found no hit (src/accel/shadow_cull.rs, whose
-// may_be_blocked is the CPU twin). A static plane is behind the ray where
-// the ray's object-space start height and direction, as the intersection
-// test computes them, have the same sign (beyond rounding). Every other
-// occluder's box lands on grid cells across the light: a ray meets none
-// where its cell is empty, or holds only the sphere or box whose lit
-// outside it leaves (`leaving`, else NO_HIT).
-fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>, leaving: u32) -> bool {
+// How the shadow ray from o along l (towards light i) is answered
+// (src/accel/shadow_cull.rs, whose may_be_blocked and occluder_list are
+// the CPU twins):
+// - SHADOW_SKIP where it provably meets nothing, so a ray skipped for it
+//   would have found no hit. A static plane is behind the ray where the
+//   ray's object-space start height and direction, as the intersection
+//   test computes them, have the same sign (beyond rounding). Every other
+//   occluder's box lands on grid cells across the light: a ray meets none
+//   where its cell is empty, or holds only the sphere or box whose lit
+//   outside it leaves (`leaving`, else NO_HIT).
+// - the index in shadow_cells of the occluder list of `receiver` (the
+//   instance whose surface o is on), where it has one: the only instances
+//   the ray can meet (list_blocks tests them);
+// - else SHADOW_WALK: the ray walks the BVH.
+const SHADOW_SKIP: u32 = 0u;
+const SHADOW_WALK: u32 = 1u;
+
+fn shadow_query(i: u32, o: vec3<f32>, l: vec3<f32>, receiver: u32, leaving: u32) -> u32 {
     let c = shadow_cull[i];
     if c.enabled == 0u {
-        return true;
+        return SHADOW_WALK;
     }
     for (var k = 0u; k < c.plane_count; k++) {
         let r = c.planes[k];
@@ -83,41 +96,80 @@ fn shadow_may_be_blocked(i: u32, o: vec3<f32>, l: vec3<f32>, leaving: u32) -> bo
         let along_err = PLANE_MARGIN * dot(abs(r.xyz), abs(l));
         let behind = (side > side_err && along > along_err) || (side < -side_err && along < -along_err);
         if !behind {
-            return true;
+            return SHADOW_WALK;
         }
     }
     let g = vec2<f32>(dot(c.u.xyz, o) - c.u.w, dot(c.v.xyz, o) - c.v.w) * c.cells_per_unit;
     if any(g < vec2<f32>(0.0)) || any(g >= vec2<f32>(c.dims)) {
-        return false;
+        return SHADOW_SKIP;
     }
     // A NaN origin fails both tests above: cast its ray.
     if any(g != g) {
-        return true;
+        return SHADOW_WALK;
     }
     let cell = shadow_cells[c.first_cell + u32(g.y) * c.dims.x + u32(g.x)];
-    return cell != 0u && cell != leaving + 1u;
+    if cell == 0u || cell == leaving + 1u {
+        return SHADOW_SKIP;
+    }
+    if SHADOW_LISTS && c.first_list != 0u && receiver != NO_HIT {
+        let r = c.first_list + receiver * SHADOW_LIST_WORDS;
+        if shadow_cells[r] != SHADOW_LIST_WALK {
+            return r;
+        }
+    }
+    return SHADOW_WALK;
+}
+
+// Whether an instance of the occluder list at shadow_cells[r] meets the
+// ray (o, l) in (0, t_max), tested as the BVH walk tests it; the receiver
+// is skipped where the list marks it a convex solid and the ray leaves its
+// lit outside (`leaving`). Each test spends a step of the budget.
+fn list_blocks(r: u32, o: vec3<f32>, l: vec3<f32>, t_max: f32, leaving: u32) -> bool {
+    let header = shadow_cells[r];
+    let skip = select(NO_HIT, leaving, (header & SHADOW_LIST_CONVEX) != 0u);
+    for (var k = 0u; k < (header & (SHADOW_LIST_CONVEX - 1u)); k++) {
+        let j = shadow_cells[r + 1u + k];
+        if j == skip {
+            continue;
+        }
+        if !take_step() {
+            return false;
+        }
+        let inst = load_instance(j);
+        let s = load_shape(inst.shape);
+        let m = inst.object_from_world;
+        if intersect_analytic(s.kind, s.params, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(l, 0.0)).xyz, 0.0, t_max).hit {
+            return true;
+        }
+    }
+    return false;
 }
 
 // Whether the shadow ray from p (unit normal n) towards light i finds
 // something in the way; a surface facing away from a light casts no ray
 // (it is unlit by it anyway), nor does one that nothing can block, nor an
-// invocation whose ray has ended (`going` false). `leaving`: the instance
-// hit from outside at p, else NO_HIT. Every invocation calls this together
-// (trace_masked).
-fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>, leaving: u32, going: bool) -> bool {
+// invocation whose ray has ended (`going` false). `receiver`: the instance
+// p is on; `leaving`: the same where it was hit from outside, else NO_HIT.
+// Every invocation calls this together (trace_masked).
+fn shadowed(i: u32, light: GpuLight, p: vec3<f32>, n: vec3<f32>, receiver: u32, leaving: u32, going: bool) -> bool {
     let ls = sample_light(i, light, p);
     let origin = p + n * frame.ray_epsilon;
-    var wants = going && light.radiance.w > 0.0 && dot(n, ls.to_light) > 0.0;
-    if wants {
-        wants = shadow_may_be_blocked(i, origin, ls.to_light, leaving);
+    var how = SHADOW_SKIP;
+    if going && light.radiance.w > 0.0 && dot(n, ls.to_light) > 0.0 {
+        how = shadow_query(i, origin, ls.to_light, receiver, leaving);
     }
-    return trace_masked(wants, origin, ls.to_light, 0.0, ls.distance, false, true).instance != NO_HIT;
+    var blocked = false;
+    if SHADOW_LISTS && how > SHADOW_WALK {
+        blocked = list_blocks(how, origin, ls.to_light, ls.distance, leaving);
+    }
+    let walked = trace_masked(how == SHADOW_WALK, origin, ls.to_light, 0.0, ls.distance, false, true);
+    return blocked || walked.instance != NO_HIT;
 }
 
 // Ambient, rim and every light, with a shadow ray per shadow-casting light
 // the surface faces. The shadow rays go first (bit i of `blocked`: light i
 // is blocked), then the lights are summed in their order.
-fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: u32, going: bool) -> vec3<f32> {
+fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, receiver: u32, leaving: u32, going: bool) -> vec3<f32> {
     var c = shade_ambient(m, n, v, frame.ambient.rgb);
     var blocked = 0u;
     if SHADOWS_ENABLED {
@@ -125,7 +177,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: 
         for (var k = 0u; k < countOneBits(SHADOW_LIGHTS); k++) {
             let i = firstTrailingBit(rest);
             rest &= rest - 1u;
-            if i < frame.light_count && shadowed(i, lights[i], p, n, leaving, going) {
+            if i < frame.light_count && shadowed(i, lights[i], p, n, receiver, leaving, going) {
                 blocked |= 1u << i;
             }
         }
@@ -136,7 +188,7 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, leaving: 
         let ls = sample_light(i, light, p);
         var visible = i >= 32u || (blocked & (1u << i)) == 0u;
         if SHADOWS_ENABLED && SHADOW_LIGHTS_FROM_32 && i >= 32u {
-            visible = !shadowed(i, light, p, n, leaving, going);
+            visible = !shadowed(i, light, p, n, receiver, leaving, going);
         }
         if visible {
             c += shade_light(m, n, v, ls.to_light, ls.radiance);
@@ -391,7 +443,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         // The instance whose outside the shadow rays leave (none when the
         // ray hit a surface from behind).
         let leaving = select(NO_HIT, hit.instance, dot(hit.geometric, d) < 0.0);
-        let shaded = shade_hit(p, n, -d, m, leaving, going);
+        let shaded = shade_hit(p, n, -d, m, hit.instance, leaving, going);
         if going {
             colour += weight * (1.0 - reflectivity) * shaded;
         }

@@ -1126,3 +1126,100 @@ fn rays_through_edges_and_vertices_never_slip_through() {
         }
     }
 }
+
+/// Shadow rays answered by their receiver's occluder list
+/// (`accel::shadow_cull`) give the picture the BVH walk gives, byte for
+/// byte: close-packed spheres, boxes, cylinders and cones at uneven
+/// heights under a slanted sun, which shade one another, in hybrid and
+/// raytrace mode, with lists (`Gpu::set_shadow_lists`) and without. The
+/// shadows are there (against the same scene without shadows, many pixels
+/// darken), there is no floor, so every shadow falls on a solid, and most
+/// solids' rays use a list (the CPU build of the same data). A list that
+/// missed an occluder would lose a shadow; one that held a wrong instance,
+/// or a receiver tested against itself, would add one.
+#[test]
+fn occluder_lists_draw_what_the_walk_draws() {
+    let gpu = gpu();
+    let kinds = ["ball", "crate", "post", "cone", "egg"];
+    let instances: Vec<String> = (0..36)
+        .map(|i| {
+            let (x, z) = ((i % 6) as f32 * 1.1, (i / 6) as f32 * 1.1);
+            let y = 0.3 * ((i * 7 % 5) as f32);
+            let turn = (i * 37 % 90) as f32;
+            format!(
+                r#"(shape: "{}", material: "m", transform: (translate: ({x}, {y}, {z}), rotate_deg: ({turn}, {turn}, 0.0)))"#,
+                kinds[i % kinds.len()]
+            )
+        })
+        .collect();
+    let ron = |shadows: bool| {
+        format!(
+            r#"(version: 1,
+            camera: (eye: (2.75, 7.0, 10.0), target: (2.75, 0.5, 2.75), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 128, height: 96),
+            ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+            lights: [Directional(direction: (-0.6, -1.0, -0.4), color: (1.0, 1.0, 1.0), intensity: 1.0, cast_shadows: {shadows})],
+            materials: {{ "m": (base_color: (0.8, 0.7, 0.6), model: BlinnPhong) }},
+            shapes: {{
+                "ball": Sphere(radius: 0.5), "egg": Sphere(radius: 0.4),
+                "crate": Box(half_extents: (0.4, 0.3, 0.35)),
+                "post": Cylinder(radius: 0.3, height: 1.2), "cone": Cone(radius: 0.4, height: 1.0),
+            }},
+            instances: [{}],
+        )"#,
+            instances.join(",\n")
+        )
+    };
+    let lit = scene(&ron(true));
+    for mode in [RenderMode::Hybrid, RenderMode::Raytrace] {
+        let settings = RenderSettings {
+            width: 128,
+            height: 96,
+            spp: 2,
+            mode,
+            ..RenderSettings::default()
+        };
+        let draw = |lists: bool, scene: &Scene| {
+            gpu.set_shadow_lists(lists);
+            let r = rendered(&gpu, scene.clone(), settings.clone());
+            gpu.set_shadow_lists(true);
+            assert_eq!(r.scene_buffers().shadow_lists, lists);
+            assert_eq!(
+                r.trace_variant().shadow_lists(),
+                scene.lights[0].casts_shadows(),
+                "{mode:?}: whether the kernel holds the list test"
+            );
+            (r.read_srgb8(&gpu).unwrap(), r)
+        };
+        let (with_lists, r) = draw(true, &lit);
+        let (walked, _) = draw(false, &lit);
+        let (unshadowed, _) = draw(true, &scene(&ron(false)));
+        let differ = with_lists
+            .iter()
+            .zip(&walked)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(differ, 0, "{mode:?}: {differ} bytes differ with lists");
+        let darker = with_lists
+            .chunks(4)
+            .zip(unshadowed.chunks(4))
+            .filter(|(a, b)| a[0] + 10 < b[0])
+            .count();
+        // At least 2% of the image (580 pixels when written).
+        assert!(
+            darker > 128 * 96 / 50,
+            "{mode:?}: {darker} pixels in shadow"
+        );
+        let accel = &r.scene_buffers().accel;
+        let cull = celray::accel::shadow_cull::build(accel, &lit.lights, true);
+        let listed = (0..accel.instances.len() as u32)
+            .filter(|&k| {
+                celray::accel::shadow_cull::occluder_list(&cull.lights[0], &cull.cells, k)
+                    .is_some_and(|(list, _)| list.len() >= 2)
+            })
+            .count();
+        assert!(
+            listed >= 20,
+            "{listed} of 36 solids have lists of 2 or more"
+        );
+    }
+}

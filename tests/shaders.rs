@@ -184,7 +184,7 @@ fn twins_match_wgsl_layouts() {
             first_cell,
             plane_count,
             enabled,
-            _pad
+            first_list
         }
     );
     check_twin!(trace, GpuRay { origin, dir });

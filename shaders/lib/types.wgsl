@@ -136,7 +136,11 @@ struct GpuShadowCull {
     plane_count: u32,
     // 0: every shadow ray of this light is cast.
     enabled: u32,
-    _pad: u32,
+    // Instance k's occluder list: the record of SHADOW_LIST_WORDS words at
+    // shadow_cells[first_list + k * SHADOW_LIST_WORDS] (a header: the count
+    // and SHADOW_LIST_CONVEX, or SHADOW_LIST_WALK; then the instances).
+    // 0: no lists.
+    first_list: u32,
 }
 
 // A node of a bounding volume hierarchy: a leaf (count > 0) holds items

@@ -31,6 +31,19 @@ pub const SHADOW_CULL_CELLS: u32 = 128;
 pub const CULL_CELL_MANY: u32 = u32::MAX;
 /// Planes per light whose shadow rays are tested against them exactly.
 pub const MAX_CULL_PLANES: u32 = 4;
+/// Words of one receiver's record in a light's occluder lists (in
+/// `shadow_cells`, after the grids): a header, then up to
+/// [`SHADOW_LIST_MAX`] instances whose shadows can fall on the receiver.
+pub const SHADOW_LIST_WORDS: u32 = 8;
+/// Instances one occluder list holds at most.
+pub const SHADOW_LIST_MAX: u32 = SHADOW_LIST_WORDS - 1;
+/// The header of a receiver whose shadow rays walk the BVH: its list
+/// would be longer than [`SHADOW_LIST_MAX`], or would hold a mesh or a CSG
+/// solid, which the kernel's list test does not intersect.
+pub const SHADOW_LIST_WALK: u32 = u32::MAX;
+/// Header bit (above the count): the receiver is a sphere or a box, so a
+/// ray leaving its lit outside cannot meet it, and the list test skips it.
+pub const SHADOW_LIST_CONVEX: u32 = 1 << 3;
 
 /// Which shadow rays of one light can meet something at all
 /// ([`crate::accel::shadow_cull`]): the trace kernel casts a ray only where
@@ -57,7 +70,9 @@ pub struct GpuShadowCull {
     /// 0: every shadow ray of this light is cast (a point light, or a
     /// light that casts no shadows).
     pub enabled: u32,
-    pub _pad: u32,
+    /// Where this light's occluder lists start in `shadow_cells`: instance
+    /// k's record at `first_list + k * SHADOW_LIST_WORDS`; 0: no lists.
+    pub first_list: u32,
 }
 
 /// A node of a bounding volume hierarchy. A leaf has `count > 0` items

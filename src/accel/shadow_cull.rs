@@ -33,8 +33,9 @@ use glam::{Vec2, Vec3, Vec4Swizzles};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
-    GpuShadowCull, CULL_CELL_MANY, MAX_CULL_PLANES, SHADOW_CULL_CELLS, SHAPE_BOX, SHAPE_CSG,
-    SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
+    GpuShadowCull, CULL_CELL_MANY, MAX_CULL_PLANES, SHADOW_CULL_CELLS, SHADOW_LIST_CONVEX,
+    SHADOW_LIST_MAX, SHADOW_LIST_WALK, SHADOW_LIST_WORDS, SHAPE_BOX, SHAPE_CSG, SHAPE_DISK,
+    SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
 };
 use crate::accel::SceneAccel;
 use crate::scene::Light;
@@ -47,8 +48,9 @@ pub const PLANE_MARGIN: f32 = 1e-5;
 pub const CELLS_PER_LIGHT: usize = (SHADOW_CULL_CELLS * SHADOW_CULL_CELLS) as usize;
 
 /// What the trace pass reads: one [`GpuShadowCull`] per light (at least
-/// one) and [`CELLS_PER_LIGHT`] cells for each of the first
-/// [`MAX_CULL_LIGHTS`].
+/// one); [`CELLS_PER_LIGHT`] cells for each of the first
+/// [`MAX_CULL_LIGHTS`]; then, for each of those, every instance's occluder
+/// list ([`SHADOW_LIST_WORDS`] words each; see [`occluder_lists`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ShadowCull {
     pub lights: Vec<GpuShadowCull>,
@@ -57,14 +59,29 @@ pub struct ShadowCull {
 
 /// Lights that get a grid: the first ones (each grid is 64 KiB; a light
 /// past them casts all its shadow rays). The buffers' sizes depend only on
-/// the light count, so edits of lights rewrite them in place.
+/// the light and instance counts, so edits of lights rewrite them in place.
 pub const MAX_CULL_LIGHTS: usize = 8;
 
-/// The cull data of `lights` over the instances of `accel`.
-pub fn build(accel: &SceneAccel, lights: &[Light]) -> ShadowCull {
+/// The most words all lights' occluder lists may take (64 MiB); a scene
+/// whose lists would take more has none.
+pub const MAX_LIST_WORDS: usize = 1 << 24;
+
+/// The cull data of `lights` over the instances of `accel`, with occluder
+/// lists where `lists` (and they fit in [`MAX_LIST_WORDS`]).
+pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
+    let slots = lights.len().clamp(1, MAX_CULL_LIGHTS);
+    let grids = slots * CELLS_PER_LIGHT;
+    let per_light = accel.instances.len() * SHADOW_LIST_WORDS as usize;
+    let per_light = if lists && slots * per_light <= MAX_LIST_WORDS {
+        per_light
+    } else {
+        0
+    };
+    let mut cells = vec![0; grids];
+    cells.resize(grids + slots * per_light, SHADOW_LIST_WALK);
     let mut out = ShadowCull {
         lights: vec![bytemuck::Zeroable::zeroed(); lights.len().max(1)],
-        cells: vec![0; lights.len().clamp(1, MAX_CULL_LIGHTS) * CELLS_PER_LIGHT],
+        cells,
     };
     let (planes, boxes) = split_occluders(accel);
     for (i, light) in lights.iter().enumerate().take(MAX_CULL_LIGHTS) {
@@ -74,15 +91,23 @@ pub fn build(accel: &SceneAccel, lights: &[Light]) -> ShadowCull {
             ..
         } = light
         {
+            let to_light = -direction.normalize();
             let cells = &mut out.cells[i * CELLS_PER_LIGHT..][..CELLS_PER_LIGHT];
-            if let Some(mut cull) = directional(-direction.normalize(), &boxes, cells) {
-                cull.first_cell = (i * CELLS_PER_LIGHT) as u32;
-                cull.plane_count = planes.len() as u32;
-                for (slot, row) in cull.planes.iter_mut().zip(&planes) {
-                    *slot = *row;
-                }
-                out.lights[i] = cull;
+            let Some((mut cull, pad)) = directional(to_light, &boxes, cells) else {
+                continue;
+            };
+            cull.first_cell = (i * CELLS_PER_LIGHT) as u32;
+            cull.plane_count = planes.len() as u32;
+            for (slot, row) in cull.planes.iter_mut().zip(&planes) {
+                *slot = *row;
             }
+            if per_light > 0 {
+                let first = grids + i * per_light;
+                let records = &mut out.cells[first..][..per_light];
+                occluder_lists(accel, to_light, pad, &boxes, records);
+                cull.first_list = first as u32;
+            }
+            out.lights[i] = cull;
         }
     }
     out
@@ -93,6 +118,9 @@ pub fn build(accel: &SceneAccel, lights: &[Light]) -> ShadowCull {
 /// instance's matrix, and what a cell it alone lands on holds (k + 1 for a
 /// sphere or a box, instance k; else [`CULL_CELL_MANY`]).
 struct Occluder {
+    /// Its GPU instance index and shape kind.
+    instance: u32,
+    kind: u32,
     bounds: Aabb,
     sphere: Option<(Vec3, f32, glam::Mat4)>,
     /// A static mesh's triangles in world space, each projected on its
@@ -168,6 +196,8 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
                 _ => None,
             };
             Occluder {
+                instance: k as u32,
+                kind: shape.kind,
                 bounds: accel.world_bounds[k],
                 sphere: sphere.map(|(c, r)| (c, r, world_from_object)),
                 triangles,
@@ -178,25 +208,94 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
     (planes, boxes)
 }
 
-/// An occluder across the light: the rectangle (lo, hi) bounding it, the
-/// circle (centre, radius) it lies in where that is tighter, and its tag.
-type Footprint = (Vec2, Vec2, Option<(Vec2, f32)>, u32);
+/// A region across the light that holds an occluder's projection: the
+/// rectangle (lo, hi), and the circle (centre, radius) inside it where
+/// that is tighter.
+#[derive(Debug, Clone, Copy)]
+struct Footprint {
+    lo: Vec2,
+    hi: Vec2,
+    circle: Option<(Vec2, f32)>,
+}
+
+impl Footprint {
+    fn grown(self, by: f32) -> Footprint {
+        Footprint {
+            lo: self.lo - by,
+            hi: self.hi + by,
+            circle: self.circle.map(|(c, r)| (c, r + by)),
+        }
+    }
+
+    /// Whether the two regions may share a point (false only where they
+    /// provably do not).
+    fn overlaps(&self, other: &Footprint) -> bool {
+        if self.lo.cmpgt(other.hi).any() || other.lo.cmpgt(self.hi).any() {
+            return false;
+        }
+        match (self.circle, other.circle) {
+            (Some((a, ra)), Some((b, rb))) => a.distance(b) <= ra + rb,
+            (Some((c, r)), None) => c.distance(c.clamp(other.lo, other.hi)) <= r,
+            (None, Some((c, r))) => c.distance(c.clamp(self.lo, self.hi)) <= r,
+            (None, None) => true,
+        }
+    }
+}
+
+/// The axes (u, v) across the light (`to_light`: unit, towards it).
+fn axes(to_light: Vec3) -> (Vec3, Vec3) {
+    to_light.any_orthonormal_pair()
+}
+
+fn across(u: Vec3, v: Vec3, p: Vec3) -> Vec2 {
+    Vec2::new(u.dot(p), v.dot(p))
+}
+
+fn project(u: Vec3, v: Vec3, points: &[Vec3]) -> (Vec2, Vec2) {
+    points.iter().map(|&p| across(u, v, p)).fold(
+        (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(p), hi.max(p)),
+    )
+}
+
+/// Occluder `b`'s footprint across the light, grown by `pad`: its box's
+/// rectangle, or the circle around the projection of its bounding sphere,
+/// whichever is smaller.
+fn footprint(b: &Occluder, u: Vec3, v: Vec3, pad: f32) -> Footprint {
+    let (lo, hi) = project(u, v, &b.bounds.corners());
+    let rect = Footprint {
+        lo: lo - pad,
+        hi: hi + pad,
+        circle: None,
+    };
+    let Some((centre, radius, m)) = b.sphere else {
+        return rect;
+    };
+    let c = across(u, v, m.transform_point3(centre));
+    let r = radius * projected_stretch(m, u, v) + pad;
+    if (2.0 * r) * (2.0 * r) < (hi - lo + 2.0 * pad).element_product() {
+        Footprint {
+            lo: c - r,
+            hi: c + r,
+            circle: Some((c, r)),
+        }
+    } else {
+        rect
+    }
+}
 
 /// The grid of one directional light (`to_light`: unit, towards the
-/// light) over `boxes`, written to `cells`; None where culling is off (a
-/// box that is not finite).
-fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<GpuShadowCull> {
-    let (u, v) = to_light.any_orthonormal_pair();
-    let across = |p: Vec3| Vec2::new(u.dot(p), v.dot(p));
-    let project = |points: &[Vec3]| {
-        let ps = points.iter().map(|&p| across(p));
-        ps.fold(
-            (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(p), hi.max(p)),
-        )
-    };
+/// light) over `boxes`, written to `cells`, with the margin its
+/// footprints were grown by; None where culling is off (a box that is not
+/// finite).
+fn directional(
+    to_light: Vec3,
+    boxes: &[Occluder],
+    cells: &mut [u32],
+) -> Option<(GpuShadowCull, f32)> {
+    let (u, v) = axes(to_light);
     if boxes.is_empty() {
-        return Some(cull_record(u, v, Vec2::ZERO, 0.0, [0, 0]));
+        return Some((cull_record(u, v, Vec2::ZERO, 0.0, [0, 0]), 0.0));
     }
     // The margin covers a ray drifting off its projection over the scene
     // (l is only nearly perpendicular to u and v in f32) and the rounding
@@ -207,39 +306,34 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
     }
     let pad =
         1e-4 * (all.max - all.min).length() + 1e-5 * all.min.abs().max(all.max.abs()).max_element();
-    // Each occluder's footprint across the light: a rectangle (its box's
-    // projection), or the circle around the projection of its bounding
-    // sphere, whichever is smaller; (lo, hi) bounds either. A static mesh
-    // within the budget: one rectangle per triangle (a ray meets a
-    // triangle only where it starts inside the triangle's projection).
+    // Each occluder's footprint across the light. A static mesh within
+    // the budget: one rectangle per triangle (a ray meets a triangle only
+    // where it starts inside the triangle's projection).
     let triangle_rect = |t: &[Vec3; 3]| {
-        let (lo, hi) = project(t);
-        (lo - pad, hi + pad, None, CULL_CELL_MANY)
+        let (lo, hi) = project(u, v, t);
+        let rect = Footprint {
+            lo: lo - pad,
+            hi: hi + pad,
+            circle: None,
+        };
+        (rect, CULL_CELL_MANY)
     };
-    let mut footprints: Vec<Footprint> = boxes
+    let mut footprints: Vec<(Footprint, u32)> = boxes
         .iter()
         .flat_map(|b| b.triangles.iter().map(triangle_rect))
         .collect();
-    footprints.extend(boxes.iter().filter(|b| b.triangles.is_empty()).map(|b| {
-        let (lo, hi) = project(&b.bounds.corners());
-        let rect = (lo - pad, hi + pad, None, b.tag);
-        let Some((centre, radius, m)) = b.sphere else {
-            return rect;
-        };
-        let c = across(m.transform_point3(centre));
-        let r = radius * projected_stretch(m, u, v) + pad;
-        if (2.0 * r) * (2.0 * r) < (hi - lo + 2.0 * pad).element_product() {
-            (c - r, c + r, Some((c, r)), b.tag)
-        } else {
-            rect
-        }
-    }));
+    footprints.extend(
+        boxes
+            .iter()
+            .filter(|b| b.triangles.is_empty())
+            .map(|b| (footprint(b, u, v, pad), b.tag)),
+    );
     let lo = footprints
         .iter()
-        .fold(Vec2::splat(f32::INFINITY), |a, r| a.min(r.0));
+        .fold(Vec2::splat(f32::INFINITY), |a, r| a.min(r.0.lo));
     let hi = footprints
         .iter()
-        .fold(Vec2::splat(f32::NEG_INFINITY), |a, r| a.max(r.1));
+        .fold(Vec2::splat(f32::NEG_INFINITY), |a, r| a.max(r.0.hi));
     let cell = (hi - lo).max_element() / SHADOW_CULL_CELLS as f32;
     let per_unit = 1.0 / cell;
     if !(per_unit.is_finite() && per_unit > 0.0) {
@@ -256,11 +350,11 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
             (c.y.max(0.0) as u32).min(dims[1] - 1),
         ]
     };
-    for (a, b, circle, tag) in footprints {
-        let (from, to) = (cell_of(a), cell_of(b));
+    for (f, tag) in footprints {
+        let (from, to) = (cell_of(f.lo), cell_of(f.hi));
         for y in from[1]..=to[1] {
             for x in from[0]..=to[0] {
-                if let Some((c, r)) = circle {
+                if let Some((c, r)) = f.circle {
                     // The cell's square, and its point nearest the centre.
                     let corner = lo + Vec2::new(x as f32, y as f32) * cell;
                     let nearest = c.clamp(corner, corner + cell);
@@ -273,7 +367,157 @@ fn directional(to_light: Vec3, boxes: &[Occluder], cells: &mut [u32]) -> Option<
             }
         }
     }
-    Some(cull_record(u, v, lo, per_unit, dims))
+    Some((cull_record(u, v, lo, per_unit, dims), pad))
+}
+
+/// Every instance's occluder list for the directional light towards
+/// `to_light` (unit), written to `records` ([`SHADOW_LIST_WORDS`] words per
+/// instance, in instance order; `pad`: the grid's footprint margin).
+///
+/// A shadow ray from a surface point of instance r starts inside r's
+/// footprint (grown by `reach`: the kernel's offset along the normal, 1e-4
+/// of the scene's half diagonal at most, and rounding) and moves towards
+/// the light. So it can only meet an occluder whose footprint overlaps
+/// r's and that reaches further towards the light than r's lowest point:
+/// r's list holds those (r among them; [`SHADOW_LIST_CONVEX`] marks a
+/// sphere or a box, which a ray leaving its lit outside cannot meet). The
+/// kernel then tests just them instead of walking the BVH, and finds a hit
+/// exactly where the walk would. The list stays [`SHADOW_LIST_WALK`] where
+/// it would hold more than [`SHADOW_LIST_MAX`] instances, or a mesh or CSG
+/// solid (the list test intersects analytic shapes only). Planes tested
+/// exactly are in no list (the kernel reads one only when they are all
+/// behind the ray) and have none.
+fn occluder_lists(
+    accel: &SceneAccel,
+    to_light: Vec3,
+    pad: f32,
+    boxes: &[Occluder],
+    records: &mut [u32],
+) {
+    if boxes.is_empty() {
+        return;
+    }
+    let (u, v) = axes(to_light);
+    let scene = accel
+        .world_bounds
+        .iter()
+        .fold(Aabb::EMPTY, |a, &b| a.grow(b));
+    let reach = 1e-4 * (scene.max - scene.min).length() + pad;
+    let prints: Vec<Footprint> = boxes.iter().map(|b| footprint(b, u, v, pad)).collect();
+    // How far along the light each occluder reaches (its box's corners).
+    let along: Vec<(f32, f32)> = boxes
+        .iter()
+        .map(|b| {
+            let ts = b.bounds.corners().map(|p| p.dot(to_light));
+            let lo = ts.iter().copied().fold(f32::INFINITY, f32::min);
+            (lo, ts.iter().copied().fold(f32::NEG_INFINITY, f32::max))
+        })
+        .collect();
+    let buckets = Buckets::new(&prints);
+    // `seen[j] == r + 1`: occluder j was already considered for receiver r.
+    let mut seen = vec![0usize; boxes.len()];
+    let mut list = Vec::with_capacity(SHADOW_LIST_MAX as usize);
+    for (r, receiver) in boxes.iter().enumerate() {
+        let area = prints[r].grown(reach);
+        list.clear();
+        let mut walk = false;
+        for j in buckets.near(&area) {
+            if seen[j] == r + 1 {
+                continue;
+            }
+            seen[j] = r + 1;
+            if along[j].1 < along[r].0 - reach || !area.overlaps(&prints[j]) {
+                continue;
+            }
+            let kind = boxes[j].kind;
+            if kind == SHAPE_MESH || kind == SHAPE_CSG || list.len() == SHADOW_LIST_MAX as usize {
+                walk = true;
+                break;
+            }
+            list.push(boxes[j].instance);
+        }
+        if walk {
+            continue;
+        }
+        let convex = receiver.kind == SHAPE_SPHERE || receiver.kind == SHAPE_BOX;
+        let record = &mut records[receiver.instance as usize * SHADOW_LIST_WORDS as usize..]
+            [..SHADOW_LIST_WORDS as usize];
+        record[0] = list.len() as u32 | if convex { SHADOW_LIST_CONVEX } else { 0 };
+        record[1..=list.len()].copy_from_slice(&list);
+    }
+}
+
+/// Footprints sorted into a coarse grid of buckets (about one per
+/// footprint), so that a receiver's list looks only at its neighbours;
+/// footprints over more than [`Buckets::SPAN`] buckets are looked at for
+/// every receiver.
+struct Buckets {
+    lo: Vec2,
+    per_unit: f32,
+    dims: [usize; 2],
+    cells: Vec<Vec<usize>>,
+    wide: Vec<usize>,
+}
+
+impl Buckets {
+    const SPAN: usize = 16;
+
+    fn new(prints: &[Footprint]) -> Buckets {
+        let lo = prints
+            .iter()
+            .fold(Vec2::splat(f32::INFINITY), |a, f| a.min(f.lo));
+        let hi = prints
+            .iter()
+            .fold(Vec2::splat(f32::NEG_INFINITY), |a, f| a.max(f.hi));
+        let side = (prints.len() as f32).sqrt().ceil().clamp(1.0, 1024.0);
+        let per_unit = side / (hi - lo).max_element();
+        let per_unit = if per_unit.is_finite() { per_unit } else { 0.0 };
+        let dims = ((hi - lo) * per_unit)
+            .ceil()
+            .clamp(Vec2::ONE, Vec2::splat(side));
+        let mut b = Buckets {
+            lo,
+            per_unit,
+            dims: [dims.x as usize, dims.y as usize],
+            cells: vec![Vec::new(); dims.x as usize * dims.y as usize],
+            wide: Vec::new(),
+        };
+        for (j, f) in prints.iter().enumerate() {
+            let ([x0, y0], [x1, y1]) = b.range(f);
+            if (x1 - x0 + 1) * (y1 - y0 + 1) > Buckets::SPAN {
+                b.wide.push(j);
+                continue;
+            }
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    b.cells[y * b.dims[0] + x].push(j);
+                }
+            }
+        }
+        b
+    }
+
+    /// The buckets (first and last, along u and v) that `f` covers.
+    fn range(&self, f: &Footprint) -> ([usize; 2], [usize; 2]) {
+        let cell = |p: Vec2| {
+            let c = ((p - self.lo) * self.per_unit).floor().max(Vec2::ZERO);
+            [
+                (c.x as usize).min(self.dims[0] - 1),
+                (c.y as usize).min(self.dims[1] - 1),
+            ]
+        };
+        (cell(f.lo), cell(f.hi))
+    }
+
+    /// The footprints that may overlap `area` (some more than once).
+    fn near<'a>(&'a self, area: &Footprint) -> impl Iterator<Item = usize> + 'a {
+        let ([x0, y0], [x1, y1]) = self.range(area);
+        let in_grid = (y0..=y1).flat_map(move |y| (x0..=x1).map(move |x| y * self.dims[0] + x));
+        self.wide
+            .iter()
+            .copied()
+            .chain(in_grid.flat_map(|c| self.cells[c].iter().copied()))
+    }
 }
 
 /// The largest factor by which `m` stretches object-space lengths as seen
@@ -299,7 +543,7 @@ fn cull_record(u: Vec3, v: Vec3, lo: Vec2, per_unit: f32, dims: [u32; 2]) -> Gpu
         first_cell: 0,
         plane_count: 0,
         enabled: 1,
-        _pad: 0,
+        first_list: 0,
     }
 }
 
@@ -342,6 +586,27 @@ pub fn may_be_blocked(
     }
     let cell = cells[(cull.first_cell + g.y as u32 * cull.dims[0] + g.x as u32) as usize];
     cell != 0 && cell != leaving.wrapping_add(1)
+}
+
+/// The CPU twin of the list half of the trace kernel's `shadow_query`:
+/// where `receiver` has an occluder list for this light, its instances and
+/// whether the receiver is convex (then a ray leaving its lit outside
+/// cannot meet it); None where its shadow rays walk the BVH.
+pub fn occluder_list<'a>(
+    cull: &GpuShadowCull,
+    cells: &'a [u32],
+    receiver: u32,
+) -> Option<(&'a [u32], bool)> {
+    if cull.enabled == 0 || cull.first_list == 0 {
+        return None;
+    }
+    let words = SHADOW_LIST_WORDS as usize;
+    let record = &cells[cull.first_list as usize + receiver as usize * words..][..words];
+    if record[0] == SHADOW_LIST_WALK {
+        return None;
+    }
+    let count = (record[0] & (SHADOW_LIST_CONVEX - 1)) as usize;
+    Some((&record[1..=count], record[0] & SHADOW_LIST_CONVEX != 0))
 }
 
 #[cfg(test)]
@@ -436,7 +701,7 @@ mod tests {
     fn a_culled_shadow_ray_meets_nothing() {
         for direction in ["(-0.5, -1.0, -0.6)", "(0.3, -0.2, 0.9)", "(0.0, 1.0, 0.0)"] {
             let (scene, accel) = scene(direction);
-            let cull = build(&accel, &scene.lights);
+            let cull = build(&accel, &scene.lights, true);
             let Light::Directional { direction, .. } = scene.lights[0] else {
                 unreachable!()
             };
@@ -463,7 +728,7 @@ mod tests {
     #[test]
     fn the_floor_is_tested_as_a_plane() {
         let (scene, accel) = scene("(-0.5, -1.0, -0.6)");
-        let cull = build(&accel, &scene.lights);
+        let cull = build(&accel, &scene.lights, true);
         let l = Vec3::new(0.5, 1.0, 0.6).normalize();
         let c = &cull.lights[0];
         assert_eq!(c.enabled, 1);
@@ -494,11 +759,12 @@ mod tests {
     #[test]
     fn a_ray_leaving_a_lone_convex_solid_is_culled() {
         let (scene, accel) = scene("(-0.5, -1.0, -0.6)");
-        let cull = build(&accel, &scene.lights);
+        let cull = build(&accel, &scene.lights, true);
         let l = Vec3::new(0.5, 1.0, 0.6).normalize();
         let eps = 1e-3;
         let dirs = points(3000, 1.0);
-        for &cell in &cull.cells {
+        let grids = cull.lights[0].first_list as usize;
+        for &cell in &cull.cells[..grids] {
             if cell != 0 && cell != CULL_CELL_MANY {
                 let kind = accel.shapes[accel.instances[cell as usize - 1].2 as usize].kind;
                 assert!(
@@ -549,7 +815,7 @@ mod tests {
     #[test]
     fn rays_grazing_a_sphere_are_never_culled() {
         let (scene, accel) = scene("(-0.5, -1.0, -0.6)");
-        let cull = build(&accel, &scene.lights);
+        let cull = build(&accel, &scene.lights, true);
         let l = Vec3::new(0.5, 1.0, 0.6).normalize();
         let (u, v) = l.any_orthonormal_pair();
         // The ball at (-1, 0.5, 0) of radius 0.5, and the shrunk ball at
@@ -577,7 +843,7 @@ mod tests {
     #[test]
     fn a_mesh_marks_only_its_triangles_footprint() {
         let (scene, accel) = scene("(-0.5, -1.0, -0.6)");
-        let cull = build(&accel, &scene.lights);
+        let cull = build(&accel, &scene.lights, true);
         let l = Vec3::new(0.5, 1.0, 0.6).normalize();
         let cow = accel.instances.len() - 1;
         let b = accel.world_bounds[cow];
@@ -606,13 +872,19 @@ mod tests {
     #[test]
     fn only_shadow_casting_directional_lights_cull() {
         let (scene, accel) = scene("(-0.5, -1.0, -0.6)");
-        let cull = build(&accel, &scene.lights);
+        let cull = build(&accel, &scene.lights, true);
         assert_eq!(cull.lights.len(), 3);
-        assert_eq!(cull.cells.len(), 3 * CELLS_PER_LIGHT);
+        let lists = accel.instances.len() * SHADOW_LIST_WORDS as usize;
+        assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists));
+        assert_eq!(cull.lights[0].first_list as usize, 3 * CELLS_PER_LIGHT);
+        assert_eq!(cull.lights[1].first_list, 0, "a point light has no lists");
         // Past the first MAX_CULL_LIGHTS lights, none is culled.
         let many = vec![scene.lights[0].clone(); MAX_CULL_LIGHTS + 2];
-        let cull_many = build(&accel, &many);
-        assert_eq!(cull_many.cells.len(), MAX_CULL_LIGHTS * CELLS_PER_LIGHT);
+        let cull_many = build(&accel, &many, true);
+        assert_eq!(
+            cull_many.cells.len(),
+            MAX_CULL_LIGHTS * (CELLS_PER_LIGHT + lists)
+        );
         assert_eq!(cull_many.lights[MAX_CULL_LIGHTS - 1].enabled, 1);
         assert_eq!(cull_many.lights[MAX_CULL_LIGHTS].enabled, 0);
         assert_eq!(cull.lights[1].enabled, 0);
@@ -624,5 +896,209 @@ mod tests {
             Vec3::Y,
             u32::MAX
         ));
+    }
+
+    /// Close-packed analytic solids (spheres, stretched spheres, turned
+    /// boxes, cylinders, cones) at uneven heights on a 7 x 7 grid, a low
+    /// light, so that many cast shadows on their neighbours; a CSG solid
+    /// and the spot mesh among them; a floor.
+    fn packed_scene() -> (Scene, SceneAccel) {
+        let kinds = ["ball", "egg", "crate", "post", "cone"];
+        let mut instances = vec![
+            r#"(shape: "floor", material: "m")"#.to_string(),
+            r#"(shape: "holed", material: "m", transform: (translate: (7.5, 0.8, 3.0)))"#
+                .to_string(),
+            r#"(shape: "cow", material: "m", transform: (translate: (-1.5, 0.737, 3.0)))"#
+                .to_string(),
+        ];
+        for i in 0..49 {
+            let (x, z) = ((i % 7) as f32 * 1.1, (i / 7) as f32 * 1.1);
+            let y = 0.5 + 0.3 * ((i * 7 % 5) as f32);
+            let turn = (i * 37 % 90) as f32;
+            instances.push(format!(
+                r#"(shape: "{}", material: "m", transform: (translate: ({x}, {y}, {z}), rotate_deg: ({turn}, {turn}, 0.0)))"#,
+                kinds[i % kinds.len()]
+            ));
+        }
+        let ron = format!(
+            r#"(version: 1,
+                camera: (eye: (3.0, 6.0, 12.0), target: (3.0, 0.0, 3.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 64, height: 64),
+                lights: [Directional(direction: (-0.6, -1.0, -0.4), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+                materials: {{ "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) }},
+                shapes: {{
+                    "floor": Plane(Quad(half_size: (20.0, 20.0))),
+                    "ball": Sphere(radius: 0.5),
+                    "egg": Sphere(radius: 0.4),
+                    "crate": Box(half_extents: (0.4, 0.3, 0.35)),
+                    "post": Cylinder(radius: 0.3, height: 1.2),
+                    "cone": Cone(radius: 0.4, height: 1.0),
+                    "holed": Difference(Box(half_extents: (0.6, 0.6, 0.6)), Sphere(radius: 0.75)),
+                    "cow": Mesh(path: "assets/models/spot/spot_triangulated.obj"),
+                }},
+                instances: [{}],
+            )"#,
+            instances.join(",\n")
+        );
+        let scene = Scene::from_ron_str(&ron, "test", std::path::Path::new(".")).unwrap();
+        let order: Vec<usize> = (0..scene.instances.len()).collect();
+        let accel = SceneAccel::build(&scene, &order).unwrap();
+        (scene, accel)
+    }
+
+    /// The property the kernel's list test relies on: a shadow ray from the
+    /// surface of an instance that has a list (offset along the normal as
+    /// the kernel offsets it, on either side of the surface) can only meet
+    /// the instances of that list, never the convex receiver itself when it
+    /// leaves its outside. Surface points are found by the CPU tracer (rays
+    /// aimed at each instance's centre from all sides); the CPU tracer's
+    /// closest hit along each shadow ray must be in the list. It fails if
+    /// the footprints, the overlap test, the light-side filter or the
+    /// receiver's margin are too tight, or a record lands at the wrong
+    /// instance.
+    #[test]
+    fn a_shadow_ray_meets_only_its_receivers_occluders() {
+        let (scene, accel) = packed_scene();
+        let cull = build(&accel, &scene.lights, true);
+        let c = &cull.lights[0];
+        let l = Vec3::new(0.6, 1.0, 0.4).normalize();
+        let (lo, hi) = scene.bounds();
+        let eps = (hi - lo).length() * 0.5 * 1e-4;
+        let dirs = points(1000, 1.0);
+        let (mut listed, mut long_lists, mut by_others, mut from_inside) = (0, 0, 0, 0);
+        for k in 0..accel.instances.len() as u32 {
+            let Some((list, convex)) = occluder_list(c, &cull.cells, k) else {
+                continue;
+            };
+            listed += 1;
+            long_lists += usize::from(list.len() >= 3);
+            let b = accel.world_bounds[k as usize];
+            let centre = (b.min + b.max) * 0.5;
+            for d in &dirs {
+                let d = d.normalize_or(Vec3::Y);
+                let from = centre + d * 3.0;
+                let Some(h) = accel.closest_hit(from, -d, 0.0, 10.0).hit else {
+                    continue;
+                };
+                if h.instance != k {
+                    continue;
+                }
+                let p = from - d * h.t;
+                for side in [1.0, -1.0] {
+                    let n = h.geometric * side;
+                    if n.dot(l) <= 0.0 {
+                        continue;
+                    }
+                    let o = p + n * eps;
+                    let leaving = if side > 0.0 { k } else { u32::MAX };
+                    let Some(hit) = accel.closest_hit(o, l, 0.0, f32::INFINITY).hit else {
+                        continue;
+                    };
+                    by_others += usize::from(hit.instance != k);
+                    from_inside += usize::from(side < 0.0);
+                    assert!(
+                        list.contains(&hit.instance),
+                        "the shadow ray from {o} on instance {k} meets {} outside its list {list:?}",
+                        hit.instance
+                    );
+                    assert!(
+                        !(convex && hit.instance == leaving),
+                        "the ray leaving convex instance {k} meets it"
+                    );
+                }
+            }
+        }
+        // Half the solids have lists, most with neighbours in them, and
+        // many checked rays are blocked: by a neighbour, or (from inside)
+        // by the receiver itself.
+        assert!(listed >= 20, "{listed} instances have lists");
+        assert!(long_lists >= 15, "{long_lists} lists hold 3 or more");
+        assert!(
+            by_others > 300 && from_inside > 1000,
+            "{by_others} rays blocked by another instance, {from_inside} from inside"
+        );
+    }
+
+    /// A list is never given where the kernel could not answer it: a
+    /// receiver next to the CSG solid or the mesh, and the mesh and the
+    /// CSG solid themselves, walk; the floor (a plane tested exactly) has
+    /// none; lists hold analytic instances only. Without lists every
+    /// record walks.
+    #[test]
+    fn meshes_and_csg_solids_keep_the_walk() {
+        let (scene, accel) = packed_scene();
+        let cull = build(&accel, &scene.lights, true);
+        let c = &cull.lights[0];
+        let kind = |k: u32| accel.shapes[accel.instances[k as usize].2 as usize].kind;
+        let mut walks = 0;
+        for k in 0..accel.instances.len() as u32 {
+            match occluder_list(c, &cull.cells, k) {
+                Some((list, _)) => {
+                    assert!(kind(k) < SHAPE_QUAD, "instance {k} of kind {}", kind(k));
+                    for &j in list {
+                        assert!(kind(j) < SHAPE_QUAD, "list of {k} holds {j}");
+                    }
+                }
+                None => walks += 1,
+            }
+        }
+        for k in 0..3 {
+            assert!(occluder_list(c, &cull.cells, k).is_none(), "instance {k}");
+        }
+        assert!(walks >= 4, "{walks} receivers walk");
+        let off = build(&accel, &scene.lights, false);
+        assert_eq!(off.lights[0].first_list, 0);
+        assert_eq!(off.cells.len(), CELLS_PER_LIGHT);
+        assert_eq!(off.cells, cull.cells[..CELLS_PER_LIGHT]);
+    }
+
+    /// Under a light straight overhead, sphere A (radius 0.5 at the
+    /// origin) has two neighbours whose footprints overlap its own by 0.03
+    /// and 0.05 only: sphere B (radius 0.5, centre (0.97, 1.5, 0)) above
+    /// it, and box C (x from -1.45 to -0.45, y from -1 to 0.3) beside it,
+    /// whose top is lower than A's. Rays going up from A's rim, x >= 0.47
+    /// (inside B's circle (x - 0.97)^2 + z^2 <= 0.25) or x <= -0.45 (from
+    /// a point under C's top), are blocked, so A's list must hold
+    /// both; and B's list must not hold A, which lies wholly below it. It
+    /// fails if the overlap test is tighter than the footprints, or the
+    /// light-side filter compares against A's top instead of its bottom.
+    #[test]
+    fn a_neighbour_that_shades_only_the_rim_is_listed() {
+        let ron = r#"(version: 1,
+            camera: (eye: (0.0, 3.0, 8.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 64, height: 64),
+            lights: [Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: { "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) },
+            shapes: { "ball": Sphere(radius: 0.5), "crate": Box(half_extents: (0.5, 0.65, 0.5)) },
+            instances: [
+                (shape: "ball", material: "m"),
+                (shape: "ball", material: "m", transform: (translate: (0.97, 1.5, 0.0))),
+                (shape: "crate", material: "m", transform: (translate: (-0.95, -0.35, 0.0))),
+            ],
+        )"#;
+        let scene = Scene::from_ron_str(ron, "test", std::path::Path::new(".")).unwrap();
+        let accel = SceneAccel::build(&scene, &[0, 1, 2]).unwrap();
+        let cull = build(&accel, &scene.lights, true);
+        let c = &cull.lights[0];
+        let (a, _) = occluder_list(c, &cull.cells, 0).expect("A has a list");
+        let (b, _) = occluder_list(c, &cull.cells, 1).expect("B has a list");
+        assert!(a.contains(&1) && a.contains(&2), "A's list {a:?}");
+        assert!(!b.contains(&0), "B's list {b:?}");
+        // Rays from A's rim (z = 0) under B (x > 0) and over C (x < 0).
+        let mut blocked = [0, 0];
+        for (which, side) in [(0usize, 1.0f32), (1, -1.0)] {
+            for i in 0..200 {
+                let (x, z) = (side * (0.44 + 0.06 * i as f32 / 200.0), 0.0);
+                let y2 = 0.25 - x * x - z * z;
+                if y2 <= 0.0 {
+                    continue;
+                }
+                let n = Vec3::new(x, y2.sqrt(), z) * 2.0;
+                let o = n * 0.5 + n * 1e-4;
+                if let Some(h) = accel.closest_hit(o, Vec3::Y, 0.0, f32::INFINITY).hit {
+                    assert!(a.contains(&h.instance), "from {o}: {}", h.instance);
+                    blocked[which] += usize::from(h.instance == which as u32 + 1);
+                }
+            }
+        }
+        assert!(blocked[0] > 10 && blocked[1] > 10, "blocked {blocked:?}");
     }
 }

@@ -123,6 +123,10 @@ pub struct Gpu {
     /// listed marked tiles (`render::accumulate`); tests turn it off to
     /// check the dispatch over every tile against it.
     outline_tile_list: AtomicBool,
+    /// Whether scenes uploaded from now on give shadow rays occluder lists
+    /// (`accel::shadow_cull`); tests turn it off to check the lists
+    /// against the BVH walk.
+    shadow_lists: AtomicBool,
     /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
@@ -280,6 +284,7 @@ impl Gpu {
             shader_overrides: Mutex::new(None),
             uniform_tables: AtomicBool::new(true),
             outline_tile_list: AtomicBool::new(true),
+            shadow_lists: AtomicBool::new(true),
             edge_tolerance: AtomicBool::new(edge_tolerance),
             packet_walk,
         })
@@ -307,6 +312,18 @@ impl Gpu {
 
     pub fn outline_tile_list(&self) -> bool {
         self.outline_tile_list.load(Ordering::Relaxed)
+    }
+
+    /// Whether scenes uploaded from now on give each instance's shadow rays
+    /// the list of occluders that can block them, tested instead of the
+    /// BVH walk (on by default; off: every shadow ray that the cull keeps
+    /// walks, the same images, for tests and benchmarks).
+    pub fn set_shadow_lists(&self, on: bool) {
+        self.shadow_lists.store(on, Ordering::Relaxed);
+    }
+
+    pub fn shadow_lists(&self) -> bool {
+        self.shadow_lists.load(Ordering::Relaxed)
     }
 
     /// Whether pipelines built from now on give the triangle test's edge

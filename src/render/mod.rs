@@ -304,6 +304,11 @@ impl Renderer {
         &self.buffers
     }
 
+    /// The trace pass's variant now (which code its kernel holds).
+    pub fn trace_variant(&self) -> trace::Variant {
+        self.trace.variant()
+    }
+
     /// Which acceleration structure rays walk now: "driver" or "software".
     pub fn accel_in_use(&self) -> &'static str {
         if self.trace.uses_driver() {

@@ -175,6 +175,9 @@ pub struct SceneBuffers {
     /// rewritten when lights are edited.
     pub shadow_cull: wgpu::Buffer,
     pub shadow_cells: wgpu::Buffer,
+    /// Whether `shadow_cells` holds occluder lists (`Gpu::shadow_lists` at
+    /// upload), which light edits keep.
+    pub shadow_lists: bool,
     /// Which tables the passes read from their uniform copies
     /// ([`crate::gpu::uniform_tables`]): part of every pipeline's key.
     pub tables: UniformTables,
@@ -495,7 +498,7 @@ impl SceneBuffers {
     /// Rewrites the shadow cull data for edited `lights` (as many as at
     /// upload).
     pub fn write_shadow_cull(&self, gpu: &Gpu, lights: &[Light]) {
-        let cull = shadow_cull::build(&self.accel, lights);
+        let cull = shadow_cull::build(&self.accel, lights, self.shadow_lists);
         gpu.queue
             .write_buffer(&self.shadow_cull, 0, bytemuck::cast_slice(&cull.lights));
         gpu.queue
@@ -760,7 +763,8 @@ impl SceneBuffers {
             let csg_ops = storage_buffer(gpu, "scene CSG programs", &csg_ops);
             let csg_leaves = storage_buffer(gpu, "scene CSG leaves", &csg_leaves);
             let triangle_maps = storage_buffer(gpu, "scene triangle maps", &triangle_maps);
-            let cull = shadow_cull::build(&accel, &scene.lights);
+            let shadow_lists = gpu.shadow_lists();
+            let cull = shadow_cull::build(&accel, &scene.lights, shadow_lists);
             let shadow_cull = storage_buffer(gpu, "shadow cull", &cull.lights);
             let shadow_cells = storage_buffer(gpu, "shadow cull cells", &cull.cells);
             let mut entries = buffer_entries(&[
@@ -807,6 +811,7 @@ impl SceneBuffers {
                 triangle_maps,
                 shadow_cull,
                 shadow_cells,
+                shadow_lists,
                 tables,
                 packet_trace,
                 uniform_copies,

@@ -14,6 +14,7 @@ use std::collections::HashMap;
 
 use wgpu::util::DeviceExt;
 
+use crate::accel::shadow_cull;
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
@@ -93,6 +94,11 @@ pub struct Variant {
     /// more lights than cast shadows draws the same picture (see
     /// [`TracePass::variant_for_edit`]).
     shadow_lights_from_32: bool,
+    /// `SHADOW_LISTS`: some shadow ray may be answered by its receiver's
+    /// occluder list (`accel::shadow_cull`): one of the first
+    /// `MAX_CULL_LIGHTS` lights is directional and casts shadows, and some
+    /// instance is an analytic shape (a list's receiver and entries are).
+    shadow_lists: bool,
     reflections: bool,
     glossy: bool,
     textures: bool,
@@ -131,6 +137,7 @@ impl Variant {
                 .filter(|(_, &c)| c)
                 .fold(0, |bits, (i, _)| bits | 1 << i),
             shadow_lights_from_32: casts.iter().skip(mask_lights).any(|&c| c),
+            shadow_lists: shadow_lists(scene, buffers),
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
             textures: buffers.uses_textures,
@@ -140,6 +147,11 @@ impl Variant {
             tables: buffers.tables,
             packet: buffers.packet_trace,
         }
+    }
+
+    /// Whether the kernel may answer shadow rays by occluder lists.
+    pub fn shadow_lists(self) -> bool {
+        self.shadow_lists
     }
 
     /// The override constants that select this variant in trace.wgsl.
@@ -154,6 +166,7 @@ impl Variant {
             ),
             ("SHADOW_LIGHTS", f64::from(self.shadow_lights)),
             ("SHADOW_LIGHTS_FROM_32", flag(self.shadow_lights_from_32)),
+            ("SHADOW_LISTS", flag(self.shadow_lists)),
             ("REFLECTIONS_ENABLED", flag(self.reflections)),
             ("GLOSSY_ENABLED", flag(self.glossy)),
             ("TEXTURES_ENABLED", flag(self.textures)),
@@ -164,6 +177,22 @@ impl Variant {
         constants.push(self.tables.constant());
         constants
     }
+}
+
+/// Whether a shadow ray may be answered by an occluder list (see
+/// [`Variant::shadow_lists`]).
+fn shadow_lists(scene: &Scene, buffers: &SceneBuffers) -> bool {
+    let directional = scene
+        .lights
+        .iter()
+        .take(shadow_cull::MAX_CULL_LIGHTS)
+        .any(|l| matches!(l, Light::Directional { .. }) && l.casts_shadows());
+    let accel = &buffers.accel;
+    directional
+        && accel
+            .instances
+            .iter()
+            .any(|&(_, _, shape)| accel.shapes[shape as usize].kind < SHAPE_MESH)
 }
 
 /// The analytic shape kinds (bit 1 << kind) of the scene's shapes and CSG
@@ -251,6 +280,7 @@ impl TracePass {
         Variant {
             shadow_lights: want.shadow_lights | now.shadow_lights,
             shadow_lights_from_32: want.shadow_lights_from_32 || now.shadow_lights_from_32,
+            shadow_lists: want.shadow_lists || now.shadow_lists,
             ..want
         }
     }
