@@ -95,9 +95,10 @@ pub struct Variant {
     /// [`TracePass::variant_for_edit`]).
     shadow_lights_from_32: bool,
     /// `SHADOW_LISTS`: some shadow ray may be answered by its receiver's
-    /// occluder list (`accel::shadow_cull`): one of the first
-    /// `MAX_CULL_LIGHTS` lights is directional and casts shadows, and some
-    /// instance is an analytic shape (a list's receiver and entries are).
+    /// occluder list (`accel::shadow_cull`): the scene has lists
+    /// (`SceneBuffers::shadow_lists`), one of the first `MAX_CULL_LIGHTS`
+    /// lights is directional and casts shadows, and some instance is an
+    /// analytic shape (a list's receiver and entries are).
     shadow_lists: bool,
     reflections: bool,
     glossy: bool,
@@ -188,7 +189,8 @@ fn shadow_lists(scene: &Scene, buffers: &SceneBuffers) -> bool {
         .take(shadow_cull::MAX_CULL_LIGHTS)
         .any(|l| matches!(l, Light::Directional { .. }) && l.casts_shadows());
     let accel = &buffers.accel;
-    directional
+    buffers.shadow_lists
+        && directional
         && accel
             .instances
             .iter()
