@@ -56,9 +56,11 @@ override GLOSSY_ENABLED: bool = true;
 override SHADOW_LIGHTS: u32 = 0xffffffffu;
 override SHADOW_LIGHTS_FROM_32: bool = true;
 // Whether a shadow ray may be answered by its receiver's occluder list
-// (shadow_query): false where no list can exist (no directional light of
-// the first 8 casts shadows, or every instance is a mesh, a CSG solid or
-// a plane).
+// (shadow_query): false where no list can exist (a scene of fewer than
+// 500 instances, src/accel/shadow_cull.rs's MIN_LIST_INSTANCES, whose
+// walks are short and whose kernel the list code alone slowed by up to a
+// quarter; no directional light of the first 8 casts shadows; or every
+// instance is a mesh, a CSG solid or a plane).
 override SHADOW_LISTS: bool = true;
 
 // The normal facing the ray: two-sided surfaces are shaded on both sides.
