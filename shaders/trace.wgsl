@@ -56,11 +56,11 @@ override GLOSSY_ENABLED: bool = true;
 override SHADOW_LIGHTS: u32 = 0xffffffffu;
 override SHADOW_LIGHTS_FROM_32: bool = true;
 // Whether a shadow ray may be answered by its receiver's occluder list
-// (shadow_query): false where no list can exist (a scene of fewer than
-// 500 instances, src/accel/shadow_cull.rs's MIN_LIST_INSTANCES, whose
-// walks are short and whose kernel the list code alone slowed by up to a
-// quarter; no directional light of the first 8 casts shadows; or every
-// instance is a mesh, a CSG solid or a plane).
+// (shadow_query): only where exactly one light casts shadows, a
+// directional one (src/render/trace.rs, Variant::shadow_lists). With
+// more, shade_hit casts the shadow rays in a loop, and there the list
+// code alone slowed the default scene's trace pass by a third on
+// lavapipe.
 override SHADOW_LISTS: bool = true;
 
 // The normal facing the ray: two-sided surfaces are shaded on both sides.
@@ -175,12 +175,24 @@ fn shade_hit(p: vec3<f32>, n: vec3<f32>, v: vec3<f32>, m: GpuMaterial, receiver:
     var c = shade_ambient(m, n, v, frame.ambient.rgb);
     var blocked = 0u;
     if SHADOWS_ENABLED {
-        var rest = SHADOW_LIGHTS;
-        for (var k = 0u; k < countOneBits(SHADOW_LIGHTS); k++) {
-            let i = firstTrailingBit(rest);
-            rest &= rest - 1u;
+        // One shadow-casting light (the usual sun): its call alone, not in
+        // a loop of one, which the CPU driver may not unroll around a walk
+        // (with the occluder-list code, the loop made the pass 1.26x slower).
+        if countOneBits(SHADOW_LIGHTS) == 1u {
+            // (& 31: without shadow lights this dead branch's shift must
+            // still be a valid constant.)
+            let i = firstTrailingBit(SHADOW_LIGHTS) & 31u;
             if i < frame.light_count && shadowed(i, lights[i], p, n, receiver, leaving, going) {
-                blocked |= 1u << i;
+                blocked = 1u << i;
+            }
+        } else {
+            var rest = SHADOW_LIGHTS;
+            for (var k = 0u; k < countOneBits(SHADOW_LIGHTS); k++) {
+                let i = firstTrailingBit(rest);
+                rest &= rest - 1u;
+                if i < frame.light_count && shadowed(i, lights[i], p, n, receiver, leaving, going) {
+                    blocked |= 1u << i;
+                }
             }
         }
     }

@@ -1130,8 +1130,8 @@ fn rays_through_edges_and_vertices_never_slip_through() {
 /// Shadow rays answered by their receiver's occluder list
 /// (`accel::shadow_cull`) give the picture the BVH walk gives, byte for
 /// byte: 576 close-packed spheres, boxes, cylinders and cones at uneven
-/// heights under a slanted sun, which shade one another (enough instances
-/// for lists: `MIN_LIST_INSTANCES`), in hybrid and raytrace mode, with
+/// heights under a slanted sun, which shade one another, in hybrid and
+/// raytrace mode, with
 /// lists (`Gpu::set_shadow_lists`) and without. The shadows are there
 /// (against the same scene without shadows, many pixels darken), there is
 /// no floor, so every shadow falls on a solid, and most solids' rays use a
@@ -1143,7 +1143,6 @@ fn occluder_lists_draw_what_the_walk_draws() {
     let gpu = gpu();
     let kinds = ["ball", "crate", "post", "cone", "egg"];
     let side = 24;
-    assert!(side * side >= celray::accel::shadow_cull::MIN_LIST_INSTANCES);
     let instances: Vec<String> = (0..side * side)
         .map(|i| {
             let (x, z) = ((i % side) as f32 * 1.1, (i / side) as f32 * 1.1);

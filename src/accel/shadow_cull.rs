@@ -66,17 +66,8 @@ pub const MAX_CULL_LIGHTS: usize = 8;
 /// whose lists would take more has none.
 pub const MAX_LIST_WORDS: usize = 1 << 24;
 
-/// Scenes with fewer instances get no occluder lists. On lavapipe the
-/// list test's code alone slows the trace kernel where walks are short
-/// (the default scene's trace pass 1.26x, mirrors 1.13x), while where the
-/// top-level tree is deep the lists pay: sphere grids of 100, 1,000,
-/// 10,000 and 100,000 instances, trace pass 1.00, 0.83, 0.79 and 0.76 of
-/// the walk's (docs/performance-history.md, twentieth session).
-pub const MIN_LIST_INSTANCES: usize = 500;
-
 /// The cull data of `lights` over the instances of `accel`, with occluder
-/// lists where `lists` and they fit in [`MAX_LIST_WORDS`] (the caller
-/// applies [`MIN_LIST_INSTANCES`]).
+/// lists where `lists` and they fit in [`MAX_LIST_WORDS`].
 pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
     let slots = lights.len().clamp(1, MAX_CULL_LIGHTS);
     let grids = slots * CELLS_PER_LIGHT;

@@ -316,10 +316,8 @@ impl Gpu {
 
     /// Whether scenes uploaded from now on give each instance's shadow rays
     /// the list of occluders that can block them, tested instead of the
-    /// BVH walk (on by default, for scenes of
-    /// `accel::shadow_cull::MIN_LIST_INSTANCES` or more; off: every shadow
-    /// ray that the cull keeps walks, the same images, for tests and
-    /// benchmarks).
+    /// BVH walk (on by default; off: every shadow ray that the cull keeps
+    /// walks, the same images, for tests and benchmarks).
     pub fn set_shadow_lists(&self, on: bool) {
         self.shadow_lists.store(on, Ordering::Relaxed);
     }

@@ -176,8 +176,7 @@ pub struct SceneBuffers {
     pub shadow_cull: wgpu::Buffer,
     pub shadow_cells: wgpu::Buffer,
     /// Whether `shadow_cells` holds occluder lists (`Gpu::shadow_lists` at
-    /// upload, and the scene has `shadow_cull::MIN_LIST_INSTANCES`), which
-    /// light edits keep.
+    /// upload), which light edits keep.
     pub shadow_lists: bool,
     /// Which tables the passes read from their uniform copies
     /// ([`crate::gpu::uniform_tables`]): part of every pipeline's key.
@@ -764,8 +763,7 @@ impl SceneBuffers {
             let csg_ops = storage_buffer(gpu, "scene CSG programs", &csg_ops);
             let csg_leaves = storage_buffer(gpu, "scene CSG leaves", &csg_leaves);
             let triangle_maps = storage_buffer(gpu, "scene triangle maps", &triangle_maps);
-            let shadow_lists =
-                gpu.shadow_lists() && accel.instances.len() >= shadow_cull::MIN_LIST_INSTANCES;
+            let shadow_lists = gpu.shadow_lists();
             let cull = shadow_cull::build(&accel, &scene.lights, shadow_lists);
             let shadow_cull = storage_buffer(gpu, "shadow cull", &cull.lights);
             let shadow_cells = storage_buffer(gpu, "shadow cull cells", &cull.cells);

@@ -94,11 +94,14 @@ pub struct Variant {
     /// more lights than cast shadows draws the same picture (see
     /// [`TracePass::variant_for_edit`]).
     shadow_lights_from_32: bool,
-    /// `SHADOW_LISTS`: some shadow ray may be answered by its receiver's
+    /// `SHADOW_LISTS`: shadow rays may be answered by their receiver's
     /// occluder list (`accel::shadow_cull`): the scene has lists
-    /// (`SceneBuffers::shadow_lists`), one of the first `MAX_CULL_LIGHTS`
-    /// lights is directional and casts shadows, and some instance is an
-    /// analytic shape (a list's receiver and entries are).
+    /// (`SceneBuffers::shadow_lists`), some instance is an analytic shape
+    /// (a list's receiver and entries are), and exactly one light casts
+    /// shadows, a directional one of the first `MAX_CULL_LIGHTS`. With
+    /// more, `shade_hit` casts the shadow rays in a loop, and there the list
+    /// code alone slowed the default scene's trace pass 1.34x on lavapipe
+    /// (docs/performance-history.md, twentieth session).
     shadow_lists: bool,
     reflections: bool,
     glossy: bool,
@@ -183,14 +186,20 @@ impl Variant {
 /// Whether a shadow ray may be answered by an occluder list (see
 /// [`Variant::shadow_lists`]).
 fn shadow_lists(scene: &Scene, buffers: &SceneBuffers) -> bool {
-    let directional = scene
+    let mut casting = scene
         .lights
         .iter()
-        .take(shadow_cull::MAX_CULL_LIGHTS)
-        .any(|l| matches!(l, Light::Directional { .. }) && l.casts_shadows());
+        .enumerate()
+        .filter(|(_, l)| l.casts_shadows());
+    let one_sun = match (casting.next(), casting.next()) {
+        (Some((i, light)), None) => {
+            i < shadow_cull::MAX_CULL_LIGHTS && matches!(light, Light::Directional { .. })
+        }
+        _ => false,
+    };
     let accel = &buffers.accel;
     buffers.shadow_lists
-        && directional
+        && one_sun
         && accel
             .instances
             .iter()
@@ -282,7 +291,9 @@ impl TracePass {
         Variant {
             shadow_lights: want.shadow_lights | now.shadow_lights,
             shadow_lights_from_32: want.shadow_lights_from_32 || now.shadow_lights_from_32,
-            shadow_lists: want.shadow_lists || now.shadow_lists,
+            shadow_lists: (want.shadow_lists || now.shadow_lists)
+                && (want.shadow_lights | now.shadow_lights).count_ones() == 1
+                && !(want.shadow_lights_from_32 || now.shadow_lights_from_32),
             ..want
         }
     }
