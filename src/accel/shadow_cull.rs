@@ -66,8 +66,33 @@ pub const MAX_CULL_LIGHTS: usize = 8;
 /// whose lists would take more has none.
 pub const MAX_LIST_WORDS: usize = 1 << 24;
 
-/// The cull data of `lights` over the instances of `accel`, with occluder
-/// lists where `lists` and they fit in [`MAX_LIST_WORDS`].
+/// Whether the trace kernel reads occluder lists for `lights` over
+/// `accel` (`SHADOW_LISTS`; `render::trace::Variant`): exactly one light
+/// casts shadows, a directional one among the first [`MAX_CULL_LIGHTS`],
+/// and some instance is an analytic shape (a list's receiver and entries
+/// are). With more shadow-casting lights the kernel casts their rays in a
+/// loop, where the list code cost more than it saved
+/// (docs/performance-history.md, twentieth session).
+pub fn lists_read(accel: &SceneAccel, lights: &[Light]) -> bool {
+    let mut casting = lights.iter().enumerate().filter(|(_, l)| l.casts_shadows());
+    let one_sun = match (casting.next(), casting.next()) {
+        (Some((i, light)), None) => {
+            i < MAX_CULL_LIGHTS && matches!(light, Light::Directional { .. })
+        }
+        _ => false,
+    };
+    one_sun
+        && accel
+            .instances
+            .iter()
+            .any(|&(_, _, shape)| accel.shapes[shape as usize].kind < SHAPE_MESH)
+}
+
+/// The cull data of `lights` over the instances of `accel`. Where `lists`
+/// and they fit in [`MAX_LIST_WORDS`], it has room for occluder lists
+/// (its size depends only on the light and instance counts, so that light
+/// edits rewrite it in place), filled where the kernel reads them
+/// ([`lists_read`]); unfilled, every record is [`SHADOW_LIST_WALK`].
 pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
     let slots = lights.len().clamp(1, MAX_CULL_LIGHTS);
     let grids = slots * CELLS_PER_LIGHT;
@@ -83,6 +108,7 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
         lights: vec![bytemuck::Zeroable::zeroed(); lights.len().max(1)],
         cells,
     };
+    let fill = per_light > 0 && lists_read(accel, lights);
     let (planes, boxes) = split_occluders(accel);
     for (i, light) in lights.iter().enumerate().take(MAX_CULL_LIGHTS) {
         if let Light::Directional {
@@ -101,7 +127,7 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
             for (slot, row) in cull.planes.iter_mut().zip(&planes) {
                 *slot = *row;
             }
-            if per_light > 0 {
+            if fill {
                 let first = grids + i * per_light;
                 let records = &mut out.cells[first..][..per_light];
                 occluder_lists(accel, to_light, pad, &boxes, records);
@@ -868,13 +894,28 @@ mod tests {
         );
     }
 
-    /// Point lights and lights that cast no shadows keep every ray.
+    /// Point lights and lights that cast no shadows keep every ray. The
+    /// lists' room is there for every light, but filled only where exactly
+    /// one light, a directional one, casts shadows (`lists_read`): here the
+    /// point light casts shadows too, until it is made not to.
     #[test]
     fn only_shadow_casting_directional_lights_cull() {
         let (scene, accel) = scene("(-0.5, -1.0, -0.6)");
         let cull = build(&accel, &scene.lights, true);
         assert_eq!(cull.lights.len(), 3);
         let lists = accel.instances.len() * SHADOW_LIST_WORDS as usize;
+        assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists));
+        assert!(!lists_read(&accel, &scene.lights));
+        assert_eq!(cull.lights[0].first_list, 0, "two lights cast shadows");
+        assert!(cull.cells[3 * CELLS_PER_LIGHT..]
+            .iter()
+            .all(|&w| w == SHADOW_LIST_WALK));
+        let mut one_sun = scene.lights.clone();
+        if let Light::Point { cast_shadows, .. } = &mut one_sun[1] {
+            *cast_shadows = false;
+        }
+        assert!(lists_read(&accel, &one_sun));
+        let cull = build(&accel, &one_sun, true);
         assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists));
         assert_eq!(cull.lights[0].first_list as usize, 3 * CELLS_PER_LIGHT);
         assert_eq!(cull.lights[1].first_list, 0, "a point light has no lists");

@@ -175,8 +175,10 @@ pub struct SceneBuffers {
     /// rewritten when lights are edited.
     pub shadow_cull: wgpu::Buffer,
     pub shadow_cells: wgpu::Buffer,
-    /// Whether `shadow_cells` holds occluder lists (`Gpu::shadow_lists` at
-    /// upload), which light edits keep.
+    /// Whether `shadow_cells` has room for occluder lists
+    /// (`Gpu::shadow_lists` at upload), which light edits keep; they are
+    /// filled only where the trace kernel reads them
+    /// (`shadow_cull::lists_read`).
     pub shadow_lists: bool,
     /// Which tables the passes read from their uniform copies
     /// ([`crate::gpu::uniform_tables`]): part of every pipeline's key.

@@ -186,24 +186,7 @@ impl Variant {
 /// Whether a shadow ray may be answered by an occluder list (see
 /// [`Variant::shadow_lists`]).
 fn shadow_lists(scene: &Scene, buffers: &SceneBuffers) -> bool {
-    let mut casting = scene
-        .lights
-        .iter()
-        .enumerate()
-        .filter(|(_, l)| l.casts_shadows());
-    let one_sun = match (casting.next(), casting.next()) {
-        (Some((i, light)), None) => {
-            i < shadow_cull::MAX_CULL_LIGHTS && matches!(light, Light::Directional { .. })
-        }
-        _ => false,
-    };
-    let accel = &buffers.accel;
-    buffers.shadow_lists
-        && one_sun
-        && accel
-            .instances
-            .iter()
-            .any(|&(_, _, shape)| accel.shapes[shape as usize].kind < SHAPE_MESH)
+    buffers.shadow_lists && shadow_cull::lists_read(&buffers.accel, &scene.lights)
 }
 
 /// The analytic shape kinds (bit 1 << kind) of the scene's shapes and CSG
