@@ -34,6 +34,10 @@
 // Per light, which shadow rays can meet anything (src/accel/shadow_cull.rs).
 @group(1) @binding(8) var<storage, read> shadow_cull: array<GpuShadowCull>;
 @group(1) @binding(9) var<storage, read> shadow_cells: array<u32>;
+// Per 8 x 8 tile of pixels (one workgroup), the instances its primary rays
+// can meet, or PRIMARY_TILE_WALK (src/accel/screen_tiles.rs): made on the
+// CPU for each sample's camera.
+@group(1) @binding(10) var<storage, read> primary_tiles: array<u32>;
 
 // TRACE_WORKGROUP, MAX_INVOCATION_STEPS (loop iterations one pixel may
 // spend on traversal, all rays together: well under lavapipe's silent cut
@@ -62,6 +66,24 @@ override SHADOW_LIGHTS_FROM_32: bool = true;
 // code alone slowed the default scene's trace pass by a third on
 // lavapipe.
 override SHADOW_LISTS: bool = true;
+// Whether primary rays test their tile's instances (primary_tiles) instead
+// of walking the BVH where the tile has a list (src/render/trace.rs,
+// Variant::primary_tiles: scenes of up to MAX_TILED_INSTANCES instances).
+override PRIMARY_TILES: bool = false;
+
+// The closest hit of the primary ray (o, d) among the instances of the
+// tile record at primary_tiles[r], tested as the BVH walk tests them; each
+// test spends a step of the budget.
+fn trace_listed(r: u32, o: vec3<f32>, d: vec3<f32>, skip_meshes: bool) -> TraceHit {
+    var top = top_miss(3.0e38);
+    for (var k = 0u; k < primary_tiles[r]; k++) {
+        if !take_step() {
+            break;
+        }
+        _ = test_instance(primary_tiles[r + 1u + k], o, d, 0.0, skip_meshes, 0u, &top);
+    }
+    return finish_hit(top);
+}
 
 // The normal facing the ray: two-sided surfaces are shaded on both sides.
 fn facing_normal(h: TraceHit, d: vec3<f32>) -> vec3<f32> {
@@ -389,7 +411,22 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     var from_raster = false;
 
     let hybrid = frame.mode == RENDER_MODE_HYBRID;
-    var hit = trace_converged(o, d, 0.0, 3.0e38, hybrid, false);
+    var hit: TraceHit;
+    if PRIMARY_TILES {
+        // The workgroup's tile: every invocation of it takes the same path.
+        let tiles_x = (frame.size_px.x + TRACE_WORKGROUP - 1u) / TRACE_WORKGROUP;
+        let r = (wg.y * tiles_x + wg.x) * PRIMARY_TILE_WORDS;
+        let listed = primary_tiles[r] != PRIMARY_TILE_WALK;
+        if listed {
+            hit = trace_listed(r, o, d, hybrid);
+        }
+        let walked = trace_masked(!listed, o, d, 0.0, 3.0e38, hybrid, false);
+        if !listed {
+            hit = walked;
+        }
+    } else {
+        hit = trace_converged(o, d, 0.0, 3.0e38, hybrid, false);
+    }
     if hybrid {
         let id = textureLoad(raster_id, pixel, 0).x;
         if id != 0u {

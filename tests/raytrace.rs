@@ -1226,3 +1226,63 @@ fn occluder_lists_draw_what_the_walk_draws() {
         );
     }
 }
+
+/// Primary rays that test only their screen tile's instances
+/// (`accel::screen_tiles`) draw the picture the BVH walk draws, byte for
+/// byte: the default scene (hybrid, whose primary rays skip the
+/// rasterized cow, and raytrace), the depth-of-field and motion-blur
+/// scene (every sample's lens point and shutter time give other tiles)
+/// and the CSG scene, at a size whose last row and column of tiles are
+/// cut. And the tiles are used: most tiles of each scene's first sample
+/// hold a list, shorter than the scene's instance count.
+#[test]
+fn primary_tiles_draw_what_the_walk_draws() {
+    let gpu = gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let cases = [
+        ("default.ron", RenderMode::Hybrid),
+        ("default.ron", RenderMode::Raytrace),
+        ("anchor_dof_motion.ron", RenderMode::Raytrace),
+        ("csg_textbook.ron", RenderMode::Raytrace),
+    ];
+    for (file, mode) in cases {
+        let scene = Scene::load(&dir.join(file)).unwrap();
+        let settings = RenderSettings {
+            width: 164,
+            height: 92,
+            spp: 3,
+            mode,
+            ..RenderSettings::default()
+        };
+        let draw = |on: bool| {
+            gpu.set_primary_tiles(on);
+            let r = rendered(&gpu, scene.clone(), settings.clone());
+            gpu.set_primary_tiles(true);
+            assert_eq!(r.trace_variant().primary_tiles(), on, "{file}: the variant");
+            (r.read_srgb8(&gpu).unwrap(), r)
+        };
+        let (tiled, r) = draw(true);
+        let (walked, _) = draw(false);
+        let differ = tiled.iter().zip(&walked).filter(|(a, b)| a != b).count();
+        assert_eq!(
+            differ, 0,
+            "{file} {mode:?}: {differ} bytes differ with tiles"
+        );
+        let tiles = r.primary_tiles(0, mode);
+        let count = tiles.len() / celray::gpu::twins::PRIMARY_TILE_WORDS as usize;
+        assert_eq!(count, 21 * 12, "{file}: 8 x 8 tiles over 164 x 92");
+        let lists: Vec<&[u32]> = (0..count)
+            .filter_map(|t| celray::accel::screen_tiles::tile_list(&tiles, t))
+            .collect();
+        let instances = scene.instances.len();
+        assert!(
+            lists.len() * 2 > count,
+            "{file}: {} of {count} tiles listed",
+            lists.len()
+        );
+        assert!(
+            lists.iter().any(|l| l.len() < instances),
+            "{file}: every list holds all {instances} instances"
+        );
+    }
+}

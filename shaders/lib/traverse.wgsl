@@ -171,16 +171,61 @@ fn trace_miss(t_max: f32) -> TraceHit {
     return h;
 }
 
+// A top-level query's closest hit so far: `best`, with its normals still
+// in the hit instance's object space until finish_hit.
+struct TopHit {
+    best: TraceHit,
+    object_normal: vec3<f32>,
+    object_geometric: vec3<f32>,
+}
+
+fn top_miss(t_max: f32) -> TopHit {
+    var top: TopHit;
+    top.best = trace_miss(t_max);
+    return top;
+}
+
+// Tests GPU instance `inst` against the world ray (o, d) in (t_min,
+// top.best.t), keeping its hit in `top` where there is one, which it
+// returns. `base`: where a mesh or CSG walk's own stack entries start.
+// With `skip_meshes`, triangle meshes are ignored (hybrid mode rasterizes
+// them).
+fn test_instance(inst: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, skip_meshes: bool, base: u32, top: ptr<function, TopHit>) -> bool {
+    let shape = load_instance(inst).shape;
+    if skip_meshes && load_shape(shape).kind == SHAPE_MESH {
+        return false;
+    }
+    let m = load_instance(inst).object_from_world;
+    let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, (*top).best.t, base);
+    if !h.hit {
+        return false;
+    }
+    (*top).best.t = h.t;
+    (*top).best.instance = inst;
+    (*top).best.material = select(object_material, load_instance(inst).material, object_material == CSG_NO_MATERIAL);
+    (*top).object_normal = h.normal;
+    (*top).object_geometric = h.geometric;
+    hit_triangle = mesh_triangle;
+    return true;
+}
+
+// `top`'s hit with its normals in world space.
+fn finish_hit(top: TopHit) -> TraceHit {
+    var best = top.best;
+    if best.instance != NO_HIT {
+        let to_world = load_instance(best.instance).normal_from_object;
+        best.normal = normalize((to_world * vec4<f32>(top.object_normal, 0.0)).xyz);
+        best.geometric = normalize((to_world * vec4<f32>(top.object_geometric, 0.0)).xyz);
+    }
+    return best;
+}
+
 // The closest hit of the world ray (o, d) in (t_min, t_max), each
 // invocation walking on its own. With `any_hit`, returns the first hit found
 // (shadow rays). With `skip_meshes`, triangle meshes are ignored (hybrid
 // mode rasterizes them).
 fn trace_each(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
-    var best: TraceHit;
-    best.t = t_max;
-    best.instance = NO_HIT;
-    var object_normal = vec3<f32>(0.0);
-    var object_geometric = vec3<f32>(0.0);
+    var top = top_miss(t_max);
     let inv_d = 1.0 / d;
     var sp = 0u;
     var current = select(NO_HIT, 0u, box_entry(0u, o, inv_d, t_min, t_max, true) < 3.0e38);
@@ -197,37 +242,17 @@ fn trace_each(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: b
         }
         let node = load_tree_node(current, true);
         if node.count == 0u {
-            current = descend(node, o, inv_d, t_min, best.t, &sp, true);
+            current = descend(node, o, inv_d, t_min, top.best.t, &sp, true);
             continue;
         }
         for (var k = node.left_or_first; k < node.left_or_first + node.count; k++) {
-            let inst = tlas_items[k];
-            let shape = load_instance(inst).shape;
-            if skip_meshes && load_shape(shape).kind == SHAPE_MESH {
-                continue;
-            }
-            let m = load_instance(inst).object_from_world;
-            let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, best.t, sp);
-            if h.hit {
-                best.t = h.t;
-                best.instance = inst;
-                best.material = select(object_material, load_instance(inst).material, object_material == CSG_NO_MATERIAL);
-                object_normal = h.normal;
-                object_geometric = h.geometric;
-                hit_triangle = mesh_triangle;
-                if any_hit {
-                    return best;
-                }
+            if test_instance(tlas_items[k], o, d, t_min, skip_meshes, sp, &top) && any_hit {
+                return top.best;
             }
         }
         current = NO_HIT;
     }
-    if best.instance != NO_HIT {
-        let to_world = load_instance(best.instance).normal_from_object;
-        best.normal = normalize((to_world * vec4<f32>(object_normal, 0.0)).xyz);
-        best.geometric = normalize((to_world * vec4<f32>(object_geometric, 0.0)).xyz);
-    }
-    return best;
+    return finish_hit(top);
 }
 
 // The top-level trace the passes call (`trace_converged`, `trace_masked`,

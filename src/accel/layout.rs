@@ -45,6 +45,16 @@ pub const SHADOW_LIST_WALK: u32 = u32::MAX;
 /// ray leaving its lit outside cannot meet it, and the list test skips it.
 pub const SHADOW_LIST_CONVEX: u32 = 1 << 3;
 
+/// Words of one screen tile's record of primary-ray candidates
+/// ([`crate::accel::screen_tiles`]): a header (the count), then up to
+/// [`PRIMARY_TILE_MAX`] instances, ascending.
+pub const PRIMARY_TILE_WORDS: u32 = 8;
+/// Instances one tile's record holds at most.
+pub const PRIMARY_TILE_MAX: u32 = PRIMARY_TILE_WORDS - 1;
+/// The header of a tile whose primary rays walk the BVH: more instances
+/// than [`PRIMARY_TILE_MAX`] may be seen there.
+pub const PRIMARY_TILE_WALK: u32 = u32::MAX;
+
 /// Which shadow rays of one light can meet something at all
 /// ([`crate::accel::shadow_cull`]): the trace kernel casts a ray only where
 /// this says it may be blocked, and the skipped rays are exactly those that

@@ -11,6 +11,7 @@ pub mod bvh;
 pub mod csg;
 pub mod intersect;
 pub mod layout;
+pub mod screen_tiles;
 pub mod shadow_cull;
 
 use std::ops::ControlFlow;

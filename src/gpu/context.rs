@@ -127,6 +127,10 @@ pub struct Gpu {
     /// (`accel::shadow_cull`); tests turn it off to check the lists
     /// against the BVH walk.
     shadow_lists: AtomicBool,
+    /// Whether scenes uploaded from now on give primary rays their screen
+    /// tile's instances (`accel::screen_tiles`); tests turn it off to
+    /// check the tiles against the BVH walk.
+    primary_tiles: AtomicBool,
     /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
@@ -285,6 +289,7 @@ impl Gpu {
             uniform_tables: AtomicBool::new(true),
             outline_tile_list: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
+            primary_tiles: AtomicBool::new(true),
             edge_tolerance: AtomicBool::new(edge_tolerance),
             packet_walk,
         })
@@ -324,6 +329,19 @@ impl Gpu {
 
     pub fn shadow_lists(&self) -> bool {
         self.shadow_lists.load(Ordering::Relaxed)
+    }
+
+    /// Whether scenes uploaded from now on let primary rays test only the
+    /// instances their screen tile can show, instead of walking the BVH
+    /// (on by default, for scenes of up to
+    /// `accel::screen_tiles::MAX_TILED_INSTANCES` instances; off: every
+    /// primary ray walks, the same images, for tests and benchmarks).
+    pub fn set_primary_tiles(&self, on: bool) {
+        self.primary_tiles.store(on, Ordering::Relaxed);
+    }
+
+    pub fn primary_tiles(&self) -> bool {
+        self.primary_tiles.load(Ordering::Relaxed)
     }
 
     /// Whether pipelines built from now on give the triangle test's edge

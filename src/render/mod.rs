@@ -34,7 +34,8 @@ use wgpu::util::DeviceExt;
 
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::twins::{
-    FrameUniforms, ReprojectUniforms, TEMPORAL_REJECT_CLIP, TEMPORAL_REJECT_NONE,
+    FrameUniforms, ReprojectUniforms, SHAPE_MESH, TEMPORAL_REJECT_CLIP, TEMPORAL_REJECT_NONE,
+    TRACE_WORKGROUP,
 };
 use crate::gpu::{readback, Gpu, GpuError};
 use crate::sampling::{Sample, SampleSchedule};
@@ -653,6 +654,22 @@ impl Renderer {
         }
     }
 
+    /// Sample `k`'s primary-ray tiles (`accel::screen_tiles`) for primary
+    /// mode `mode`: hybrid mode's primary rays skip the meshes, which it
+    /// rasterizes.
+    pub fn primary_tiles(&self, k: u32, mode: RenderMode) -> Vec<u32> {
+        let camera = self.camera_for(&self.sample_schedule().sample(k));
+        let accel = &self.buffers.accel;
+        let hybrid = mode == RenderMode::Hybrid;
+        crate::accel::screen_tiles::primary_tiles(
+            &accel.world_bounds,
+            |i| !hybrid || accel.shapes[accel.instances[i].2 as usize].kind != SHAPE_MESH,
+            camera.clip_from_world,
+            (self.settings.width, self.settings.height),
+            TRACE_WORKGROUP,
+        )
+    }
+
     /// Renders one more sample into the accumulator (one dispatch per pass,
     /// one sample per pixel: see the loop limit in STACK-NOTES.md), timing
     /// its passes when [`Renderer::enable_pass_timing`] was called and the
@@ -672,6 +689,10 @@ impl Renderer {
         };
         let uniforms = self.frame_uniforms(k);
         let draws = self.raster_draws(k);
+        let mode = self.primary_mode();
+        if mode != RenderMode::Raster && self.trace.variant().primary_tiles() {
+            self.trace.write_tiles(gpu, &self.primary_tiles(k, mode));
+        }
         if let Some((pass, prev)) = &moving {
             pass.write_uniforms(gpu, &self.reproject_uniforms(prev));
         }
@@ -693,7 +714,6 @@ impl Renderer {
             uniforms.background[1],
             uniforms.background[2],
         ];
-        let mode = self.primary_mode();
         let timed = self.timer.as_mut().is_some_and(|t| {
             t.last_timed = t.timer.begin();
             t.last_timed

@@ -191,6 +191,11 @@ pub struct SceneBuffers {
     /// ray walking alone did (docs/performance-history.md, nineteenth
     /// session).
     pub packet_trace: bool,
+    /// Whether primary rays test their screen tile's instances
+    /// (`accel::screen_tiles`, made for each sample's camera) instead of
+    /// walking the BVH: where [`Gpu::primary_tiles`] and the scene has at
+    /// most `MAX_TILED_INSTANCES` instances.
+    pub primary_tiles: bool,
     /// The uniform copies, in [`Table::ALL`]'s order; a table that does not
     /// fit binds a zero-filled buffer of the same size that nothing reads.
     uniform_copies: Vec<wgpu::Buffer>,
@@ -816,6 +821,8 @@ impl SceneBuffers {
                 shadow_lists,
                 tables,
                 packet_trace,
+                primary_tiles: gpu.primary_tiles()
+                    && accel.instances.len() <= crate::accel::screen_tiles::MAX_TILED_INSTANCES,
                 uniform_copies,
                 accel,
                 vertices: gpu

@@ -19,7 +19,7 @@ use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::shader::Traversal;
-use crate::gpu::twins::{SHAPE_MESH, TRACE_WORKGROUP};
+use crate::gpu::twins::{PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, SHAPE_MESH, TRACE_WORKGROUP};
 use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
@@ -34,7 +34,7 @@ const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterab
 
 /// Group 1 of the trace pass, binding by binding as `shaders/trace.wgsl`
 /// declares it.
-pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 11] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     read_write_storage_entry(1),                   // stats
     texture_entry(2, FLOAT),                       // raster_normal_depth
@@ -45,6 +45,7 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
     texture_entry(7, FLOAT),                       // raster_albedo
     read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // shadow_cull
     read_only_storage_entry(9, wgpu::ShaderStages::COMPUTE), // shadow_cells
+    read_only_storage_entry(10, wgpu::ShaderStages::COMPUTE), // primary_tiles
 ];
 
 pub struct TracePass {
@@ -65,6 +66,10 @@ pub struct TracePass {
     bind_groups: Option<(wgpu::BindGroup, wgpu::BindGroup)>,
     /// Counters the shader bumps: [0] = pixels that ran out of traversal steps.
     stats: wgpu::Buffer,
+    /// Per 8 x 8 tile of the image, the instances its primary rays can meet
+    /// (`accel::screen_tiles`; binding 10), written for each sample where
+    /// the variant reads it; made at every image size, every tile walking.
+    tiles: wgpu::Buffer,
     /// The driver variant (wgpu ray queries), built the first time a scene
     /// is traced through the driver's structures; `Some` group 2 while the
     /// current scene is.
@@ -103,6 +108,9 @@ pub struct Variant {
     /// code alone slowed the default scene's trace pass 1.34x on lavapipe
     /// (docs/performance-history.md, twentieth session).
     shadow_lists: bool,
+    /// `PRIMARY_TILES`: primary rays test their screen tile's instances
+    /// (`SceneBuffers::primary_tiles`).
+    primary_tiles: bool,
     reflections: bool,
     glossy: bool,
     textures: bool,
@@ -142,6 +150,7 @@ impl Variant {
                 .fold(0, |bits, (i, _)| bits | 1 << i),
             shadow_lights_from_32: casts.iter().skip(mask_lights).any(|&c| c),
             shadow_lists: shadow_lists(scene, buffers),
+            primary_tiles: buffers.primary_tiles,
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
             textures: buffers.uses_textures,
@@ -158,6 +167,11 @@ impl Variant {
         self.shadow_lists
     }
 
+    /// Whether primary rays test their screen tile's instances.
+    pub fn primary_tiles(self) -> bool {
+        self.primary_tiles
+    }
+
     /// The override constants that select this variant in trace.wgsl.
     fn constants(self) -> Vec<(&'static str, f64)> {
         let flag = |b: bool| f64::from(u8::from(b));
@@ -171,6 +185,7 @@ impl Variant {
             ("SHADOW_LIGHTS", f64::from(self.shadow_lights)),
             ("SHADOW_LIGHTS_FROM_32", flag(self.shadow_lights_from_32)),
             ("SHADOW_LISTS", flag(self.shadow_lists)),
+            ("PRIMARY_TILES", flag(self.primary_tiles)),
             ("REFLECTIONS_ENABLED", flag(self.reflections)),
             ("GLOSSY_ENABLED", flag(self.glossy)),
             ("TEXTURES_ENABLED", flag(self.textures)),
@@ -201,6 +216,23 @@ fn analytic_kinds(buffers: &SceneBuffers) -> u32 {
 }
 
 /// The trace pipeline with only the code `variant` needs.
+/// The trace workgroups (8 x 8 pixel tiles) over a `width` x `height` image.
+fn tile_count(width: u32, height: u32) -> u64 {
+    u64::from(width.div_ceil(TRACE_WORKGROUP)) * u64::from(height.div_ceil(TRACE_WORKGROUP))
+}
+
+/// A tile buffer for the image whose every tile walks the BVH: what a
+/// variant with `PRIMARY_TILES` reads before the first tiles are written.
+fn walking_tiles(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
+    let words = tile_count(width, height) as usize * PRIMARY_TILE_WORDS as usize;
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("primary ray tiles"),
+            contents: bytemuck::cast_slice(&vec![PRIMARY_TILE_WALK; words]),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        })
+}
+
 fn trace_pipeline(
     gpu: &Gpu,
     layout: &wgpu::PipelineLayout,
@@ -258,6 +290,7 @@ impl TracePass {
                 target_layout,
                 bind_groups: None,
                 stats,
+                tiles: walking_tiles(gpu, 1, 1),
                 driver: None,
                 driver_group: None,
             }
@@ -379,6 +412,11 @@ impl TracePass {
             &targets.raster_albedo,
         ]
         .map(|t| t.create_view(&Default::default()));
+        let tiles_bytes =
+            tile_count(targets.width, targets.height) * u64::from(PRIMARY_TILE_WORDS) * 4;
+        if self.tiles.size() != tiles_bytes {
+            self.tiles = walking_tiles(gpu, targets.width, targets.height);
+        }
         let out = &targets.traced_output;
         let mut entries = vec![
             wgpu::BindGroupEntry {
@@ -411,6 +449,10 @@ impl TracePass {
                 binding: 9,
                 resource: scene.shadow_cells.as_entire_binding(),
             },
+            wgpu::BindGroupEntry {
+                binding: 10,
+                resource: self.tiles.as_entire_binding(),
+            },
         ]);
         let target_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace pass bind group"),
@@ -419,6 +461,14 @@ impl TracePass {
         });
         self.bind_groups = Some((scene.bind_group.clone(), target_group));
         Ok(())
+    }
+
+    /// Writes the primary rays' tiles of the next sample
+    /// (`accel::screen_tiles::primary_tiles` over the image the pass was
+    /// prepared for).
+    pub fn write_tiles(&self, gpu: &Gpu, tiles: &[u32]) {
+        gpu.queue
+            .write_buffer(&self.tiles, 0, bytemuck::cast_slice(tiles));
     }
 
     /// Whether the pass traces through the driver's structures.

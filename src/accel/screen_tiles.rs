@@ -1,0 +1,114 @@
+//! Which instances a primary ray can meet, per screen tile.
+//!
+//! A primary ray of pixel p leaves the near plane along the points that the
+//! sample's projection maps onto p's centre, so every point it meets
+//! projects onto that centre. A point inside an instance's world box
+//! projects inside the rectangle around its 8 corners' projections, when
+//! all of them lie in front of the eye (a perspective projection keeps
+//! straight lines straight on that side). So only the instances whose
+//! rectangles cover p can give p's closest hit, and per tile of the trace
+//! pass's workgroup (every 8 invocations of which run as one SIMD program
+//! on the CPU driver) the kernel tests just those instead of walking the
+//! BVH: the same intersection tests on the same instances, so the same
+//! hits. A tile where more than [`PRIMARY_TILE_MAX`] may be seen walks.
+//! The tiles depend on the camera, so they are made for every sample, on
+//! the CPU; scenes with more than [`MAX_TILED_INSTANCES`] instances walk.
+
+use glam::{Mat4, Vec2};
+
+use crate::accel::bvh::Aabb;
+use crate::accel::layout::{PRIMARY_TILE_MAX, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS};
+
+/// Scenes with more instances walk the BVH for every primary ray: their
+/// boxes would take longer to sort onto tiles, each sample, than the walk
+/// saves, and most tiles would see too many.
+pub const MAX_TILED_INSTANCES: usize = 512;
+
+/// How far (pixels) each rectangle is grown: the kernel's rays are made in
+/// f32 through the inverse projection, so a hit may project a little off
+/// its pixel's centre; a millionth of a pixel would do for the shipped
+/// scenes, and 2 px cost a few more entries at the edges.
+pub const TILE_PAD_PX: f32 = 2.0;
+
+/// The tiles' records, row by row over `size` in `tile_px` squares,
+/// [`PRIMARY_TILE_WORDS`] words each: the count, then the GPU instance
+/// indices (ascending) whose boxes in `bounds` (per GPU instance, over
+/// the whole shutter) `clip_from_world` may show in the tile; or
+/// [`PRIMARY_TILE_WALK`]. `seen(k)`: instance k can be a primary hit at
+/// all (hybrid mode rasterizes meshes).
+pub fn primary_tiles(
+    bounds: &[Aabb],
+    seen: impl Fn(usize) -> bool,
+    clip_from_world: Mat4,
+    size: (u32, u32),
+    tile_px: u32,
+) -> Vec<u32> {
+    let tiles = (
+        size.0.div_ceil(tile_px) as usize,
+        size.1.div_ceil(tile_px) as usize,
+    );
+    let words = PRIMARY_TILE_WORDS as usize;
+    let mut out = vec![0u32; tiles.0 * tiles.1 * words];
+    for (k, b) in bounds.iter().enumerate().filter(|&(k, _)| seen(k)) {
+        let Some((lo, hi)) = pixel_rect(b, clip_from_world, size) else {
+            continue;
+        };
+        let first = |v: f32, n: usize| ((v / tile_px as f32).floor().max(0.0) as usize).min(n - 1);
+        let (x0, x1) = (first(lo.x, tiles.0), first(hi.x, tiles.0));
+        let (y0, y1) = (first(lo.y, tiles.1), first(hi.y, tiles.1));
+        for ty in y0..=y1 {
+            for tx in x0..=x1 {
+                let record = &mut out[(ty * tiles.0 + tx) * words..][..words];
+                if record[0] == PRIMARY_TILE_WALK {
+                    continue;
+                }
+                if record[0] == PRIMARY_TILE_MAX {
+                    record[0] = PRIMARY_TILE_WALK;
+                    continue;
+                }
+                record[0] += 1;
+                record[record[0] as usize] = k as u32;
+            }
+        }
+    }
+    out
+}
+
+/// The pixel rectangle (pixel centres at integer coordinates, as the
+/// kernel numbers them: x right, y down) that box `b` may cover, grown by
+/// [`TILE_PAD_PX`]; the whole image where a corner is not in front of the
+/// eye, `None` where all are behind it (a primary ray meets only points in
+/// front of the near plane) or it is off the image.
+fn pixel_rect(b: &Aabb, clip_from_world: Mat4, size: (u32, u32)) -> Option<(Vec2, Vec2)> {
+    let (w, h) = (size.0 as f32, size.1 as f32);
+    let whole = (Vec2::splat(0.0), Vec2::new(w - 1.0, h - 1.0));
+    let clips = b.corners().map(|c| clip_from_world * c.extend(1.0));
+    // Wholly behind the eye: no ray that leaves the near plane meets it.
+    if clips.iter().all(|c| c.w <= 0.0) {
+        return None;
+    }
+    let mut lo = Vec2::splat(f32::INFINITY);
+    let mut hi = Vec2::splat(f32::NEG_INFINITY);
+    for clip in clips {
+        if clip.w <= 0.0 || !clip.is_finite() {
+            return Some(whole);
+        }
+        let ndc = Vec2::new(clip.x, clip.y) / clip.w;
+        // The kernel's pixel centre x + 0.5 maps to ndc (x + 0.5) / w * 2 - 1.
+        let p = Vec2::new((ndc.x + 1.0) * 0.5 * w - 0.5, (1.0 - ndc.y) * 0.5 * h - 0.5);
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    let (lo, hi) = (lo - TILE_PAD_PX, hi + TILE_PAD_PX);
+    if hi.x < 0.0 || hi.y < 0.0 || lo.x > w - 1.0 || lo.y > h - 1.0 {
+        return None;
+    }
+    Some((lo, hi))
+}
+
+/// Tile `t`'s instances, or `None` where it walks: the CPU twin of the
+/// kernel's reading of the records.
+pub fn tile_list(tiles: &[u32], t: usize) -> Option<&[u32]> {
+    let record = &tiles[t * PRIMARY_TILE_WORDS as usize..][..PRIMARY_TILE_WORDS as usize];
+    (record[0] != PRIMARY_TILE_WALK).then(|| &record[1..=record[0] as usize])
+}
