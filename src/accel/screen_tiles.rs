@@ -19,10 +19,12 @@ use glam::{Mat4, Vec2};
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{PRIMARY_TILE_MAX, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS};
 
-/// Scenes with more instances walk the BVH for every primary ray: their
-/// boxes would take longer to sort onto tiles, each sample, than the walk
-/// saves, and most tiles would see too many.
-pub const MAX_TILED_INSTANCES: usize = 512;
+/// Scenes with more instances walk the BVH for every primary ray: most of
+/// their tiles would see more than [`PRIMARY_TILE_MAX`] and walk anyway.
+/// On lavapipe, sphere grids' trace pass took 0.64 of the walk's time
+/// with tiles at 1,000 spheres, 0.94 at 4,000, 0.99 at 10,000 and 1.05 at
+/// 100,000 (docs/performance-history.md, twenty-first session).
+pub const MAX_TILED_INSTANCES: usize = 4096;
 
 /// How far (pixels) each rectangle is grown: the kernel's rays are made in
 /// f32 through the inverse projection, so a hit may project a little off
