@@ -115,13 +115,15 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
     // only the disk's chord (its half-width floored, with a margin over the
     // rounding: a texel it keeps but the disk does not is still refused by
     // the width test below). At the cap a wider material may reach the
-    // square's corners, so the rows span the whole square.
+    // square's corners, so the rows span the whole square. At r = 1 the
+    // rows span the square too (the width test refuses what lies outside
+    // the disk), so that a constant r = 1 unrolls.
     let reach2 = frame.max_outline_px * frame.max_outline_px;
     let capped = frame.max_outline_px >= f32(MAX_OUTLINE_RADIUS);
     for (var dy = -r; dy <= r; dy++) {
         let room = reach2 - f32(dy * dy);
         var rx = r;
-        if !capped {
+        if !capped && r > 1 {
             rx = i32(floor(min(sqrt(max(room, 0.0)) + 1.0e-3, f32(r))));
         }
         for (var dx = -rx; dx <= rx; dx++) {
@@ -288,7 +290,16 @@ fn outlined(
     }
     var c = gbuffer_color(vec2<i32>(gid));
     if search {
-        let o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
+        // The usual outlines (1.5 px) search at r = 1: a call with the
+        // constant lets the driver unroll the 3 x 3 search (accumulate pass
+        // 0.92-0.94 of the time; docs/performance-history.md, twenty-first
+        // session).
+        var o: vec4<f32>;
+        if r == 1 {
+            o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(1), span, 1);
+        } else {
+            o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
+        }
         c = mix(c, o.rgb, o.a);
     }
     accumulate(gid, c);
