@@ -1233,8 +1233,10 @@ fn occluder_lists_draw_what_the_walk_draws() {
 /// rasterized cow, and raytrace), the depth-of-field and motion-blur
 /// scene (every sample's lens point and shutter time give other tiles)
 /// and the CSG scene, at a size whose last row and column of tiles are
-/// cut. And the tiles are used: most tiles of each scene's first sample
-/// hold a list, shorter than the scene's instance count.
+/// cut; the G-buffer's ids (the last sample's primary hits) are the same
+/// too. And the tiles are used: the kernel read the CPU's tiles of the
+/// last sample, and most of them hold a list, shorter than the scene's
+/// instance count.
 #[test]
 fn primary_tiles_draw_what_the_walk_draws() {
     let gpu = gpu();
@@ -1259,16 +1261,24 @@ fn primary_tiles_draw_what_the_walk_draws() {
             let r = rendered(&gpu, scene.clone(), settings.clone());
             gpu.set_primary_tiles(true);
             assert_eq!(r.trace_variant().primary_tiles(), on, "{file}: the variant");
-            (r.read_srgb8(&gpu).unwrap(), r)
+            let image = (r.read_srgb8(&gpu).unwrap(), r.read_ids(&gpu).unwrap());
+            (image, r)
         };
-        let (tiled, r) = draw(true);
-        let (walked, _) = draw(false);
+        let ((tiled, tiled_ids), r) = draw(true);
+        let ((walked, walked_ids), _) = draw(false);
         let differ = tiled.iter().zip(&walked).filter(|(a, b)| a != b).count();
         assert_eq!(
             differ, 0,
             "{file} {mode:?}: {differ} bytes differ with tiles"
         );
-        let tiles = r.primary_tiles(0, mode);
+        // The same instances too (the last sample's primary hits).
+        assert!(tiled_ids == walked_ids, "{file} {mode:?}: ids differ");
+        // The kernel read the CPU's tiles of the last sample.
+        let tiles = r.primary_tiles(settings.spp - 1, mode);
+        assert!(
+            r.read_primary_tiles(&gpu).unwrap() == tiles,
+            "{file}: the tiles the kernel read"
+        );
         let count = tiles.len() / celray::gpu::twins::PRIMARY_TILE_WORDS as usize;
         assert_eq!(count, 21 * 12, "{file}: 8 x 8 tiles over 164 x 92");
         let lists: Vec<&[u32]> = (0..count)

@@ -789,7 +789,12 @@ mod tests {
         let l = Vec3::new(0.5, 1.0, 0.6).normalize();
         let eps = 1e-3;
         let dirs = points(3000, 1.0);
-        let grids = cull.lights[0].first_list as usize;
+        // The grids of the scene's 3 lights (its lists are not filled:
+        // two lights cast shadows).
+        let grids = 3 * CELLS_PER_LIGHT;
+        assert!(cull.cells[..grids]
+            .iter()
+            .any(|&c| c != 0 && c != CULL_CELL_MANY));
         for &cell in &cull.cells[..grids] {
             if cell != 0 && cell != CULL_CELL_MANY {
                 let kind = accel.shapes[accel.instances[cell as usize - 1].2 as usize].kind;

@@ -690,7 +690,7 @@ impl Renderer {
         let uniforms = self.frame_uniforms(k);
         let draws = self.raster_draws(k);
         let mode = self.primary_mode();
-        if mode != RenderMode::Raster && self.trace.variant().primary_tiles() {
+        if mode != RenderMode::Raster && self.trace.reads_tiles() {
             self.trace.write_tiles(gpu, &self.primary_tiles(k, mode));
         }
         if let Some((pass, prev)) = &moving {
@@ -955,6 +955,13 @@ impl Renderer {
     /// budget and were painted magenta: 0 unless a scene is too deep.
     pub fn overflow_pixels(&self, gpu: &Gpu) -> Result<u32, GpuError> {
         self.trace.overflow_pixels(gpu)
+    }
+
+    /// The primary tiles the trace kernel read in the last sample, where
+    /// it reads them (`accel::screen_tiles`; else every tile walks). For
+    /// tests.
+    pub fn read_primary_tiles(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
+        self.trace.read_tiles(gpu)
     }
 
     /// The G-buffer's id target: 0 for background, else GPU instance + 1

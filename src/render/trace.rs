@@ -215,7 +215,6 @@ fn analytic_kinds(buffers: &SceneBuffers) -> u32 {
         .fold(0, |bits, k| bits | 1 << k)
 }
 
-/// The trace pipeline with only the code `variant` needs.
 /// The trace workgroups (8 x 8 pixel tiles) over a `width` x `height` image.
 fn tile_count(width: u32, height: u32) -> u64 {
     u64::from(width.div_ceil(TRACE_WORKGROUP)) * u64::from(height.div_ceil(TRACE_WORKGROUP))
@@ -229,10 +228,13 @@ fn walking_tiles(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("primary ray tiles"),
             contents: bytemuck::cast_slice(&vec![PRIMARY_TILE_WALK; words]),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
         })
 }
 
+/// The trace pipeline with only the code `variant` needs.
 fn trace_pipeline(
     gpu: &Gpu,
     layout: &wgpu::PipelineLayout,
@@ -348,7 +350,14 @@ impl TracePass {
                             &v.module,
                             &layouts,
                             &v.layout,
-                            &variant.constants(),
+                            // Primary rays go to the driver's traversal:
+                            // tiles would test meshes with celray's own
+                            // triangle test instead.
+                            &Variant {
+                                primary_tiles: false,
+                                ..variant
+                            }
+                            .constants(),
                         )
                     })?;
                     v.pipelines.insert(variant, pipeline);
@@ -461,6 +470,23 @@ impl TracePass {
         });
         self.bind_groups = Some((scene.bind_group.clone(), target_group));
         Ok(())
+    }
+
+    /// Whether the kernel reads primary tiles: the variant has them and
+    /// the pass walks celray's BVH (the driver variant is built without).
+    pub fn reads_tiles(&self) -> bool {
+        self.variant.primary_tiles && !self.uses_driver()
+    }
+
+    /// The primary tiles the kernel last read (for tests).
+    pub fn read_tiles(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
+        let bytes = readback::copy_and_read(
+            gpu,
+            &self.tiles,
+            self.tiles.size(),
+            "primary tiles readback",
+        )?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
     /// Writes the primary rays' tiles of the next sample
