@@ -32,6 +32,12 @@ pub const MAX_TILED_INSTANCES: usize = 4096;
 /// scenes, and 2 px cost a few more entries at the edges.
 pub const TILE_PAD_PX: f32 = 2.0;
 
+/// How far each box is grown first, relative to the largest coordinate of
+/// it and of the eye: f32 ray origins and hit points are off by about
+/// 1e-7 of those, which far from the origin and close to the eye can
+/// reach more than [`TILE_PAD_PX`] on the image.
+pub const BOX_PAD_REL: f32 = 1e-5;
+
 /// The tiles' records, row by row over `size` in `tile_px` squares,
 /// [`PRIMARY_TILE_WORDS`] words each: the count, then the GPU instance
 /// indices (ascending) whose boxes in `bounds` (per GPU instance, over
@@ -51,8 +57,14 @@ pub fn primary_tiles(
     );
     let words = PRIMARY_TILE_WORDS as usize;
     let mut out = vec![0u32; tiles.0 * tiles.1 * words];
+    let eye = clip_from_world.inverse().project_point3(glam::Vec3::ZERO);
     for (k, b) in bounds.iter().enumerate().filter(|&(k, _)| seen(k)) {
-        let Some((lo, hi)) = pixel_rect(b, clip_from_world, size) else {
+        let scale = b.min.abs().max(b.max.abs()).max(eye.abs()).max_element();
+        let grown = Aabb {
+            min: b.min - BOX_PAD_REL * scale,
+            max: b.max + BOX_PAD_REL * scale,
+        };
+        let Some((lo, hi)) = pixel_rect(&grown, clip_from_world, size) else {
             continue;
         };
         let first = |v: f32, n: usize| ((v / tile_px as f32).floor().max(0.0) as usize).min(n - 1);
