@@ -659,12 +659,18 @@ impl Renderer {
     /// rasterizes.
     pub fn primary_tiles(&self, k: u32, mode: RenderMode) -> Vec<u32> {
         let camera = self.camera_for(&self.sample_schedule().sample(k));
+        self.tiles_seen_by(camera.clip_from_world, mode)
+    }
+
+    /// The primary-ray tiles of the sample whose projection is
+    /// `clip_from_world` ([`Renderer::primary_tiles`]).
+    fn tiles_seen_by(&self, clip_from_world: glam::Mat4, mode: RenderMode) -> Vec<u32> {
         let accel = &self.buffers.accel;
         let hybrid = mode == RenderMode::Hybrid;
         crate::accel::screen_tiles::primary_tiles(
             &accel.world_bounds,
             |i| !hybrid || accel.shapes[accel.instances[i].2 as usize].kind != SHAPE_MESH,
-            camera.clip_from_world,
+            clip_from_world,
             (self.settings.width, self.settings.height),
             TRACE_WORKGROUP,
         )
@@ -691,7 +697,10 @@ impl Renderer {
         let draws = self.raster_draws(k);
         let mode = self.primary_mode();
         if mode != RenderMode::Raster && self.trace.reads_tiles() {
-            self.trace.write_tiles(gpu, &self.primary_tiles(k, mode));
+            // The sample's own projection, as the uniforms carry it.
+            let clip_from_world = glam::Mat4::from_cols_array_2d(&uniforms.clip_from_world);
+            let tiles = self.tiles_seen_by(clip_from_world, mode);
+            self.trace.write_tiles(gpu, tiles);
         }
         if let Some((pass, prev)) = &moving {
             pass.write_uniforms(gpu, &self.reproject_uniforms(prev));

@@ -70,6 +70,11 @@ pub struct TracePass {
     /// (`accel::screen_tiles`; binding 10), written for each sample where
     /// the variant reads it; made at every image size, every tile walking.
     tiles: wgpu::Buffer,
+    /// What `tiles` holds (empty: every tile walks, as made), so that a
+    /// sample whose tiles are the last one's uploads nothing (a still
+    /// camera's samples differ by their jitter, which rarely moves a
+    /// rectangle across a tile's edge).
+    written_tiles: Vec<u32>,
     /// The driver variant (wgpu ray queries), built the first time a scene
     /// is traced through the driver's structures; `Some` group 2 while the
     /// current scene is.
@@ -293,6 +298,7 @@ impl TracePass {
                 bind_groups: None,
                 stats,
                 tiles: walking_tiles(gpu, 1, 1),
+                written_tiles: Vec::new(),
                 driver: None,
                 driver_group: None,
             }
@@ -425,6 +431,7 @@ impl TracePass {
             tile_count(targets.width, targets.height) * u64::from(PRIMARY_TILE_WORDS) * 4;
         if self.tiles.size() != tiles_bytes {
             self.tiles = walking_tiles(gpu, targets.width, targets.height);
+            self.written_tiles.clear();
         }
         let out = &targets.traced_output;
         let mut entries = vec![
@@ -491,10 +498,13 @@ impl TracePass {
 
     /// Writes the primary rays' tiles of the next sample
     /// (`accel::screen_tiles::primary_tiles` over the image the pass was
-    /// prepared for).
-    pub fn write_tiles(&self, gpu: &Gpu, tiles: &[u32]) {
-        gpu.queue
-            .write_buffer(&self.tiles, 0, bytemuck::cast_slice(tiles));
+    /// prepared for), where they differ from what the buffer holds.
+    pub fn write_tiles(&mut self, gpu: &Gpu, tiles: Vec<u32>) {
+        if tiles != self.written_tiles {
+            gpu.queue
+                .write_buffer(&self.tiles, 0, bytemuck::cast_slice(&tiles));
+            self.written_tiles = tiles;
+        }
     }
 
     /// Whether the pass traces through the driver's structures.
