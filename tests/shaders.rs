@@ -184,7 +184,9 @@ fn twins_match_wgsl_layouts() {
             first_cell,
             plane_count,
             enabled,
-            first_list
+            first_list,
+            first_sphere,
+            _pad
         }
     );
     check_twin!(trace, GpuRay { origin, dir });

@@ -141,6 +141,10 @@ struct GpuShadowCull {
     // and SHADOW_LIST_CONVEX, or SHADOW_LIST_WALK; then the instances).
     // 0: no lists.
     first_list: u32,
+    // Instance k's world bounding sphere (centre, radius) as the f32 bits
+    // of shadow_cells[first_sphere + 4 k ..]; 0: none (with the lists).
+    first_sphere: u32,
+    _pad: array<u32, 3>,
 }
 
 // A node of a bounding volume hierarchy: a leaf (count > 0) holds items

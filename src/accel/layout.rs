@@ -83,6 +83,11 @@ pub struct GpuShadowCull {
     /// Where this light's occluder lists start in `shadow_cells`: instance
     /// k's record at `first_list + k * SHADOW_LIST_WORDS`; 0: no lists.
     pub first_list: u32,
+    /// Where the instances' world bounding spheres start in
+    /// `shadow_cells`, read with the lists: instance k's centre and radius
+    /// as the f32 bits of words `first_sphere + 4 k ..`; 0: none.
+    pub first_sphere: u32,
+    pub _pad: [u32; 3],
 }
 
 /// A node of a bounding volume hierarchy. A leaf has `count > 0` items

@@ -104,6 +104,17 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
     };
     let mut cells = vec![0; grids];
     cells.resize(grids + slots * per_light, SHADOW_LIST_WALK);
+    // With room for lists, room for the instances' bounding spheres too,
+    // which the kernel reads as vec4s (the grids and lists are whole
+    // multiples of 4 words).
+    let first_sphere = cells.len();
+    debug_assert_eq!(first_sphere % 4, 0);
+    if per_light > 0 {
+        cells.extend(
+            (0..accel.instances.len())
+                .flat_map(|k| bounding_sphere(accel, k).to_array().map(f32::to_bits)),
+        );
+    }
     let mut out = ShadowCull {
         lights: vec![bytemuck::Zeroable::zeroed(); lights.len().max(1)],
         cells,
@@ -132,6 +143,7 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
                 let records = &mut out.cells[first..][..per_light];
                 occluder_lists(accel, to_light, pad, &boxes, records);
                 cull.first_list = first as u32;
+                cull.first_sphere = first_sphere as u32;
             }
             out.lights[i] = cull;
         }
@@ -232,6 +244,45 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
         })
         .collect();
     (planes, boxes)
+}
+
+/// A sphere (centre xyz, radius w) around all of instance k in world
+/// space, over its whole shutter: the smaller of its world box's
+/// circumsphere and, for a static sphere or CSG solid, its object-space
+/// bounding sphere taken to world space (the radius scaled by the matrix's
+/// largest stretch, bounded above by Gershgorin's circle theorem, exactly
+/// for rotations with uniform scale). The kernel's list test skips an
+/// occluder whose sphere the ray misses (trace.wgsl, `may_meet_sphere`,
+/// which adds the rounding margin).
+fn bounding_sphere(accel: &SceneAccel, k: usize) -> glam::Vec4 {
+    let b = accel.world_bounds[k];
+    let boxed = ((b.min + b.max) * 0.5).extend((b.max - b.min).length() * 0.5);
+    let (world_from_object, _, shape) = accel.instances[k];
+    let shape = accel.shapes[shape as usize];
+    let object = match shape.kind {
+        _ if accel.moving[k] => None,
+        SHAPE_SPHERE => Some((Vec3::ZERO, shape.params[0])),
+        SHAPE_CSG => Some((Vec3::from_slice(&shape.params[..3]), shape.params[3])),
+        _ => None,
+    };
+    let Some((centre, radius)) = object else {
+        return boxed;
+    };
+    let m = glam::Mat3::from_mat4(world_from_object);
+    // Symmetric: its columns are its rows.
+    let gram = m.transpose() * m;
+    let largest = [gram.x_axis, gram.y_axis, gram.z_axis]
+        .map(|r| r.abs().element_sum())
+        .into_iter()
+        .fold(0.0, f32::max);
+    let sphere = world_from_object
+        .transform_point3(centre)
+        .extend(radius * largest.sqrt());
+    if sphere.w < boxed.w {
+        sphere
+    } else {
+        boxed
+    }
 }
 
 /// A region across the light that holds an occluder's projection: the
@@ -570,6 +621,8 @@ fn cull_record(u: Vec3, v: Vec3, lo: Vec2, per_unit: f32, dims: [u32; 2]) -> Gpu
         plane_count: 0,
         enabled: 1,
         first_list: 0,
+        first_sphere: 0,
+        _pad: [0; 3],
     }
 }
 
@@ -899,6 +952,55 @@ mod tests {
         );
     }
 
+    /// Every instance lies inside its world bounding sphere, which the
+    /// kernel's list test uses to skip occluders a ray misses: points over
+    /// each static sphere's and CSG solid's object-space bounding sphere,
+    /// taken to world space, and the corners of every other instance's
+    /// world box (over its motion) are within the radius, to 1e-6 of it
+    /// (the f32 rounding of the transform, a few ulp). And the spheres are
+    /// tight where they can be: a ball only moved or scaled uniformly gets
+    /// its own radius (0.5, 0.25), a ball stretched 2x along x twice its
+    /// radius, not the larger circumsphere of their boxes.
+    #[test]
+    fn bounding_spheres_hold_their_instances() {
+        let (_, accel) = scene("(-0.5, -1.0, -0.6)");
+        let on_sphere = points(200, 1.0);
+        for k in 0..accel.instances.len() {
+            let s = bounding_sphere(&accel, k);
+            let inside = |p: Vec3| {
+                let d = p.distance(s.xyz());
+                assert!(
+                    d <= s.w * (1.0 + 1e-6),
+                    "instance {k}: {p} is {d} from the centre, radius {}",
+                    s.w
+                );
+            };
+            let (world_from_object, _, shape) = accel.instances[k];
+            let shape = accel.shapes[shape as usize];
+            let object = match shape.kind {
+                SHAPE_SPHERE => Some((Vec3::ZERO, shape.params[0])),
+                SHAPE_CSG => Some((Vec3::from_slice(&shape.params[..3]), shape.params[3])),
+                _ => None,
+            };
+            match object {
+                Some((c, r)) if !accel.moving[k] => on_sphere
+                    .iter()
+                    .filter(|p| p.length() > 1e-3)
+                    .for_each(|p| {
+                        inside(world_from_object.transform_point3(c + p.normalize() * r))
+                    }),
+                _ => accel.world_bounds[k].corners().into_iter().for_each(inside),
+            }
+        }
+        for (k, radius) in [(3, 0.5), (9, 0.25), (4, 1.0)] {
+            let r = bounding_sphere(&accel, k).w;
+            assert!(
+                (r - radius).abs() <= 1e-6,
+                "instance {k}: radius {r}, not {radius}"
+            );
+        }
+    }
+
     /// Point lights and lights that cast no shadows keep every ray. The
     /// lists' room is there for every light, but filled only where exactly
     /// one light, a directional one, casts shadows (`lists_read`): here the
@@ -909,10 +1011,12 @@ mod tests {
         let cull = build(&accel, &scene.lights, true);
         assert_eq!(cull.lights.len(), 3);
         let lists = accel.instances.len() * SHADOW_LIST_WORDS as usize;
-        assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists));
+        let spheres = 4 * accel.instances.len();
+        assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists) + spheres);
         assert!(!lists_read(&accel, &scene.lights));
         assert_eq!(cull.lights[0].first_list, 0, "two lights cast shadows");
-        assert!(cull.cells[3 * CELLS_PER_LIGHT..]
+        assert_eq!(cull.lights[0].first_sphere, 0);
+        assert!(cull.cells[3 * CELLS_PER_LIGHT..][..3 * lists]
             .iter()
             .all(|&w| w == SHADOW_LIST_WALK));
         let mut one_sun = scene.lights.clone();
@@ -921,15 +1025,19 @@ mod tests {
         }
         assert!(lists_read(&accel, &one_sun));
         let cull = build(&accel, &one_sun, true);
-        assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists));
+        assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists) + spheres);
         assert_eq!(cull.lights[0].first_list as usize, 3 * CELLS_PER_LIGHT);
+        assert_eq!(
+            cull.lights[0].first_sphere as usize,
+            3 * (CELLS_PER_LIGHT + lists)
+        );
         assert_eq!(cull.lights[1].first_list, 0, "a point light has no lists");
         // Past the first MAX_CULL_LIGHTS lights, none is culled.
         let many = vec![scene.lights[0].clone(); MAX_CULL_LIGHTS + 2];
         let cull_many = build(&accel, &many, true);
         assert_eq!(
             cull_many.cells.len(),
-            MAX_CULL_LIGHTS * (CELLS_PER_LIGHT + lists)
+            MAX_CULL_LIGHTS * (CELLS_PER_LIGHT + lists) + spheres
         );
         assert_eq!(cull_many.lights[MAX_CULL_LIGHTS - 1].enabled, 1);
         assert_eq!(cull_many.lights[MAX_CULL_LIGHTS].enabled, 0);

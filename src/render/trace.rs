@@ -34,7 +34,7 @@ const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterab
 
 /// Group 1 of the trace pass, binding by binding as `shaders/trace.wgsl`
 /// declares it.
-pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 11] = [
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 12] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     read_write_storage_entry(1),                   // stats
     texture_entry(2, FLOAT),                       // raster_normal_depth
@@ -46,6 +46,7 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 11] = [
     read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // shadow_cull
     read_only_storage_entry(9, wgpu::ShaderStages::COMPUTE), // shadow_cells
     read_only_storage_entry(10, wgpu::ShaderStages::COMPUTE), // primary_tiles
+    read_only_storage_entry(11, wgpu::ShaderStages::COMPUTE), // shadow_spheres
 ];
 
 pub struct TracePass {
@@ -468,6 +469,10 @@ impl TracePass {
             wgpu::BindGroupEntry {
                 binding: 10,
                 resource: self.tiles.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 11,
+                resource: scene.shadow_cells.as_entire_binding(),
             },
         ]);
         let target_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
