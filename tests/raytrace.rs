@@ -1125,6 +1125,7 @@ fn rays_through_edges_and_vertices_never_slip_through() {
             );
         }
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Shadow rays answered by their receiver's occluder list

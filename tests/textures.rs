@@ -13,11 +13,27 @@ use celray::sampling::PixelPattern;
 use celray::scene::{srgb_to_linear, Scene, MAX_TEXTURES};
 use common::*;
 
-/// A fresh folder for one test's files.
-fn temp_dir(test: &str) -> PathBuf {
+/// A fresh folder for one test's files, removed with them when the test
+/// ends.
+struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn temp_dir(test: &str) -> TempDir {
     let dir = std::env::temp_dir().join(format!("celray-textures-{test}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    dir
+    TempDir(dir)
 }
 
 fn write_png(path: &Path, w: u32, h: u32, texel: impl Fn(u32, u32) -> [u8; 4]) {
