@@ -66,12 +66,29 @@ const ROUGH_BIT: u32 = 2u;
 const UNEVEN_BIT: u32 = 4u;
 
 // The G-buffer around this workgroup's pixels, loaded once and shared, so
-// the outline search reads workgroup memory rather than textures.
+// the outline search reads workgroup memory rather than textures. Each
+// texel's word in tile_id holds its id (0: background) in the low
+// INSTANCE_ID_BITS bits (lib/limits.wgsl; SceneBuffers::upload refuses
+// scenes whose ids need more) and its reach above them (texel_reach):
+// the search's width test and its id comparisons read one word. On the
+// CPU driver each word a pixel reads from workgroup memory is a gather of
+// 8 loads; with the width in an array of its own, and the test a branch,
+// the accumulate pass took 1.10x the time at 100,000 spheres
+// (docs/performance-history.md). Equal words are equal ids (one
+// instance, one material, one reach), and a zero word is the background.
 var<workgroup> tile_id: array<u32, TILE_TEXELS>;
 var<workgroup> tile_normal_depth: array<vec4<f32>, TILE_TEXELS>;
-// The square of the texel's outline width, or -1 on the background: the
-// search's first test reads this one array.
-var<workgroup> tile_width2: array<f32, TILE_TEXELS>;
+const REACH_SHIFT: u32 = INSTANCE_ID_BITS;
+const ID_MASK: u32 = (1u << REACH_SHIFT) - 1u;
+
+// A texel's reach: 0 on the background, else 1 + the floor of the square
+// of its material's outline width (at most 255, beyond any square of an
+// offset the search makes, 2 MAX_OUTLINE_RADIUS^2). The search takes a
+// texel at integer offset (dx, dy) where dx^2 + dy^2 <= width^2, that is
+// where dx^2 + dy^2 < reach.
+fn texel_reach(width: f32) -> u32 {
+    return 1u + u32(min(floor(width * width), 254.0));
+}
 // The bits per texel, then, per row of the tile and
 // column of the workgroup, those bits ORed over the 2r + 1 texels
 // centred on that column (pixel_needs_search). The lavapipe limit of
@@ -82,20 +99,18 @@ fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
     let size = vec2<i32>(frame.size_px);
     for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
         let q = origin + vec2<i32>(k % span, k / span);
-        var id = 0u;
+        var word = 0u;
         var nd = vec4<f32>(0.0);
-        var width2 = -1.0;
         if all(q >= vec2<i32>(0)) && all(q < size) {
-            id = gbuffer_id(q);
+            let id = gbuffer_id(q);
             if id != 0u {
                 nd = gbuffer_normal_depth(q);
                 let width = load_material(load_instance(id - 1u).material).outline_width_px;
-                width2 = width * width;
+                word = id | (texel_reach(width) << REACH_SHIFT);
             }
         }
-        tile_id[k] = id;
+        tile_id[k] = word;
         tile_normal_depth[k] = nd;
-        tile_width2[k] = width2;
     }
 }
 
@@ -128,10 +143,10 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
         }
         for (var dx = -rx; dx <= rx; dx++) {
             let k = (c.y + dy) * span + c.x + dx;
-            if f32(dx * dx + dy * dy) > tile_width2[k] {
-                continue;
-            }
             let id_q = tile_id[k];
+            // The width test, as a mask rather than a branch: 8
+            // neighbouring pixels rarely agree on it.
+            let reaches = u32(dx * dx + dy * dy) < (id_q >> REACH_SHIFT);
             let nd_q = tile_normal_depth[k];
             var edge = id_p == 0u;
             if !edge {
@@ -140,7 +155,7 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
                 let crease = dot(nd_q.xyz, nd_p.xyz) < CREASE_COS && nd_q.w <= nd_p.w;
                 edge = in_front || other_object || crease;
             }
-            if edge && nd_q.w < best_depth {
+            if reaches && edge && nd_q.w < best_depth {
                 best_depth = nd_q.w;
                 best_id = id_q;
             }
@@ -149,7 +164,7 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
     if best_id == 0u {
         return vec4<f32>(0.0);
     }
-    return vec4<f32>(load_material(load_instance(best_id - 1u).material).outline_color, 1.0);
+    return vec4<f32>(load_material(load_instance((best_id & ID_MASK) - 1u).material).outline_color, 1.0);
 }
 
 // SOURCE_BIT, ROUGH_BIT and UNEVEN_BIT of every texel of the loaded tile
@@ -169,7 +184,7 @@ fn mark_texels(span: i32, r: i32, first: u32) {
         if even && k / span + 1 < span {
             even = tile_id[k + span] == id && smooth_pair(nd, tile_normal_depth[k + span], bounds);
         }
-        tile_bits[k] = select(0u, SOURCE_BIT, tile_width2[k] >= 1.0) | select(ROUGH_BIT, 0u, even)
+        tile_bits[k] = select(0u, SOURCE_BIT, (id >> REACH_SHIFT) >= 2u) | select(ROUGH_BIT, 0u, even)
             | select(0u, UNEVEN_BIT, id != 0u && !alone);
     }
 }

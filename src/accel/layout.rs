@@ -45,6 +45,14 @@ pub const SHADOW_LIST_WALK: u32 = u32::MAX;
 /// ray leaving its lit outside cannot meet it, and the list test skips it.
 pub const SHADOW_LIST_CONVEX: u32 = 1 << 3;
 
+/// Bits of a G-buffer id (instance + 1; 0 is the background) that the
+/// outline search keeps next to a texel's reach in one word
+/// (`shaders/accumulate.wgsl`), which bounds a scene's instances.
+pub const INSTANCE_ID_BITS: u32 = 24;
+/// The most instances a scene may have: every id fits in
+/// [`INSTANCE_ID_BITS`] bits.
+pub const MAX_INSTANCES: usize = (1 << INSTANCE_ID_BITS) - 1;
+
 /// Words of one screen tile's record of primary-ray candidates
 /// ([`crate::accel::screen_tiles`]): a header (the count), then up to
 /// [`PRIMARY_TILE_MAX`] instances, ascending.

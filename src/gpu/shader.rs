@@ -57,6 +57,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("SHADOW_LIST_WALK", twins::SHADOW_LIST_WALK),
         ("SHADOW_LIST_CONVEX", twins::SHADOW_LIST_CONVEX),
         ("PRIMARY_TILE_WORDS", twins::PRIMARY_TILE_WORDS),
+        ("INSTANCE_ID_BITS", twins::INSTANCE_ID_BITS),
         ("PRIMARY_TILE_WALK", twins::PRIMARY_TILE_WALK),
         ("RAY_BATCH_WORKGROUP", twins::RAY_BATCH_WORKGROUP),
         ("ACCUMULATE_WORKGROUP", twins::ACCUMULATE_WORKGROUP),

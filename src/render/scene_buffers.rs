@@ -427,6 +427,18 @@ pub fn instance_to_gpu(world_from_object: Mat4, material: usize, shape: usize) -
     }
 }
 
+/// Scenes of more than `MAX_INSTANCES` instances are refused: their ids
+/// would not fit the G-buffer word the outline search reads.
+fn check_instance_count(count: usize) -> Result<(), GpuError> {
+    use crate::accel::layout::MAX_INSTANCES;
+    if count > MAX_INSTANCES {
+        return Err(GpuError::Unsupported(format!(
+            "the scene has {count} instances; celray draws at most {MAX_INSTANCES}"
+        )));
+    }
+    Ok(())
+}
+
 fn check_limit(what: &str, value: u64, limit: u64) -> Result<(), GpuError> {
     if value > limit {
         Err(GpuError::Limit {
@@ -515,6 +527,7 @@ impl SceneBuffers {
     /// Uploads `scene`. Sizes over the adapter's limits are refused with a
     /// message naming the limit.
     pub fn upload(gpu: &Gpu, scene: &Scene) -> Result<SceneBuffers, GpuError> {
+        check_instance_count(scene.instances.len())?;
         let limits = gpu.device.limits();
         let binding_limit = limits.max_storage_buffer_binding_size;
 
@@ -857,6 +870,16 @@ impl SceneBuffers {
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    /// 2^24 - 1 instances are drawn (ids up to 2^24 - 1 fit in 24 bits),
+    /// one more is refused with a message that names both counts.
+    #[test]
+    fn scenes_over_the_instance_limit_are_refused() {
+        assert!(check_instance_count((1 << 24) - 1).is_ok());
+        let message = check_instance_count(1 << 24).unwrap_err().to_string();
+        assert!(message.contains("16777216 instances"), "{message}");
+        assert!(message.contains("at most 16777215"), "{message}");
+    }
 
     fn shading_of(materials: &str, lights: &str) -> [(&'static str, f64); 3] {
         let ron = format!(
