@@ -36,7 +36,7 @@
 // it finds its tile: OUTLINE_TILES_LISTED, workgroup k takes tile_list[k];
 // else the dispatch is every tile's workgroup, and the unmarked ones stop at
 // once (images with more tiles than one dispatch's x may count, about
-// 4096 x 4096 pixels: src/render/accumulate.rs).
+// 2048 x 2048 pixels: src/render/accumulate.rs).
 @group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, 4>;
 const OUTLINE_TILES_LISTED: u32 = 1u;
 

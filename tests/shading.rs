@@ -282,7 +282,7 @@ fn outline_width_is_in_pixels_at_any_resolution() {
 }
 
 /// A toon sphere with an 8 px magenta outline on black, in an image whose
-/// size is no multiple of the accumulate pass's 16 px tiles, with the
+/// size is no multiple of the accumulate pass's 8 px tiles, with the
 /// sphere near its corner. On the background the outline rule is exact
 /// and needs only the id buffer: a background pixel is outlined iff some
 /// sphere pixel lies within 8 px of it (dx^2 + dy^2 <= 64; the sphere is
@@ -552,7 +552,8 @@ fn outlines_inside_one_object_follow_the_rule() {
 #[test]
 fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
     let gpu = gpu();
-    let (w, h, tile, halo) = (384u32, 288u32, 16u32, 3i64);
+    let (w, h, halo) = (384u32, 288u32, 3i64);
+    let tile = celray::gpu::twins::ACCUMULATE_WORKGROUP;
     let ron = outlined_sphere(w, h);
     for mode in [RenderMode::Raster, RenderMode::Raytrace] {
         let OutlineCheck {

@@ -19,8 +19,9 @@ pub const SHADING_BLINN_PHONG: u32 = 0;
 pub const SHADING_TOON: u32 = 1;
 pub const TONE_MAP_CLAMP: u32 = 0;
 pub const TONE_MAP_REINHARD: u32 = 1;
-/// Workgroup edge of the accumulate kernel (16 x 16 invocations).
-pub const ACCUMULATE_WORKGROUP: u32 = 16;
+/// Workgroup edge of the accumulate kernels (8 x 8 invocations), and so
+/// the edge of the tiles the outline marks are made for.
+pub const ACCUMULATE_WORKGROUP: u32 = 8;
 /// Workgroup size of the outline tile marks (shaders/outline_tiles.wgsl):
 /// one invocation per accumulate tile.
 pub const OUTLINE_TILES_WORKGROUP: u32 = 64;

@@ -89,7 +89,8 @@ pub struct AccumulatePass {
     outline_dispatch: Option<wgpu::Buffer>,
     /// Whether `outlined` runs over the listed tiles (indirectly), else
     /// over every tile: an image may have more tiles than one dispatch can
-    /// count in x (65,535 on most devices: about 4096 x 4096 pixels).
+    /// count in x (65,535 on most devices: about 2048 x 2048 pixels, so
+    /// 2560 x 1440 is listed and 3840 x 2160 is not).
     listed: bool,
 }
 

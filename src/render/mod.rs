@@ -988,7 +988,7 @@ impl Renderer {
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
-    /// Per accumulate tile (16 x 16 pixels, row by row), whether the last
+    /// Per accumulate tile (8 x 8 pixels, row by row), whether the last
     /// sample's outline search ran there (1) or was skipped (0). For tests.
     pub fn read_outline_tile_marks(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
         self.accumulate.read_tile_marks(gpu)
