@@ -40,10 +40,13 @@
 @group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, 4>;
 const OUTLINE_TILES_LISTED: u32 = 1u;
 
-// From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP;
+// The tile's edge in pixels, one invocation each: 8 or 16, set per
+// pipeline (src/render/accumulate.rs, accumulate_tile_px).
+override ACCUMULATE_TILE: u32 = MAX_ACCUMULATE_TILE;
+// From the generated lib/limits.wgsl: MAX_ACCUMULATE_TILE, the larger edge;
 // MAX_OUTLINE_RADIUS (outlines wider than this many pixels are drawn this
 // wide); TILE_TEXELS, the workgroup tile with its halo,
-// (ACCUMULATE_WORKGROUP + 2 * MAX_OUTLINE_RADIUS)^2 texels at most;
+// (MAX_ACCUMULATE_TILE + 2 * MAX_OUTLINE_RADIUS)^2 texels at most;
 // TILE_ROW_TEXELS, its rows by the workgroup's columns.
 // DEPTH_JUMP (lib/limits.wgsl): q is in front of p when its view depth is
 // smaller by this fraction.
@@ -97,7 +100,7 @@ var<workgroup> tile_bits: array<u32, TILE_TEXELS>;
 var<workgroup> row_bits: array<u32, TILE_ROW_TEXELS>;
 fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
     let size = vec2<i32>(frame.size_px);
-    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
+    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_TILE * ACCUMULATE_TILE)) {
         let q = origin + vec2<i32>(k % span, k / span);
         var word = 0u;
         var nd = vec4<f32>(0.0);
@@ -173,7 +176,7 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
 // square, so it is not checked.
 fn mark_texels(span: i32, r: i32, first: u32) {
     let bounds = smooth_step_bounds(r);
-    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_WORKGROUP * ACCUMULATE_WORKGROUP)) {
+    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_TILE * ACCUMULATE_TILE)) {
         let id = tile_id[k];
         let nd = tile_normal_depth[k];
         let alone = smooth_texel(nd);
@@ -192,7 +195,7 @@ fn mark_texels(span: i32, r: i32, first: u32) {
 // Per tile row and workgroup column x, the texel bits ORed over tile
 // columns x .. x + 2r (the 2r + 1 texels centred on pixel column x).
 fn or_rows(span: i32, r: i32, first: u32) {
-    let w = i32(ACCUMULATE_WORKGROUP);
+    let w = i32(ACCUMULATE_TILE);
     for (var e = i32(first); e < span * w; e += w * w) {
         let row = (e / w) * span + e % w;
         var bits = 0u;
@@ -219,7 +222,7 @@ fn or_rows(span: i32, r: i32, first: u32) {
 // steps inside the square, so no pair makes an edge (outline_tiles.wgsl's
 // argument, for one pixel's square rather than a tile's).
 fn pixel_needs_search(l: vec2<i32>, span: i32, r: i32) -> bool {
-    let w = i32(ACCUMULATE_WORKGROUP);
+    let w = i32(ACCUMULATE_TILE);
     var bits = 0u;
     for (var dy = 0; dy <= 2 * r; dy++) {
         bits |= row_bits[(l.y + dy) * w + l.x];
@@ -250,12 +253,12 @@ fn accumulate(p: vec2<u32>, c: vec3<f32>) {
 
 // Every tile: the pixels of tiles no outline can reach (all of them when
 // the scene has no outline 1 px or wider: r = 0, and no marks were made).
-@compute @workgroup_size(ACCUMULATE_WORKGROUP, ACCUMULATE_WORKGROUP)
+@compute @workgroup_size(ACCUMULATE_TILE, ACCUMULATE_TILE)
 fn main(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(workgroup_id) wg: vec3<u32>,
 ) {
-    let tiles_x = (frame.size_px.x + ACCUMULATE_WORKGROUP - 1u) / ACCUMULATE_WORKGROUP;
+    let tiles_x = (frame.size_px.x + ACCUMULATE_TILE - 1u) / ACCUMULATE_TILE;
     // The whole workgroup agrees, so the CPU driver skips the rest at once.
     if outline_radius() > 0 && tile_marks[wg.y * tiles_x + wg.x] != 0u {
         return;
@@ -268,15 +271,15 @@ fn main(
 
 // The marked tiles, one workgroup each: the tile and its halo loaded into
 // workgroup memory, then each pixel's outline search.
-@compute @workgroup_size(ACCUMULATE_WORKGROUP, ACCUMULATE_WORKGROUP)
+@compute @workgroup_size(ACCUMULATE_TILE, ACCUMULATE_TILE)
 fn outlined(
     @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
     @builtin(workgroup_id) wg: vec3<u32>,
 ) {
     let r = outline_radius();
-    let span = i32(ACCUMULATE_WORKGROUP) + 2 * r;
-    let tiles_x = (frame.size_px.x + ACCUMULATE_WORKGROUP - 1u) / ACCUMULATE_WORKGROUP;
+    let span = i32(ACCUMULATE_TILE) + 2 * r;
+    let tiles_x = (frame.size_px.x + ACCUMULATE_TILE - 1u) / ACCUMULATE_TILE;
     var tile: u32;
     if outline_dispatch[3] == OUTLINE_TILES_LISTED {
         tile = tile_list[wg.x];
@@ -286,7 +289,7 @@ fn outlined(
             return;
         }
     }
-    let origin = vec2<u32>(tile % tiles_x, tile / tiles_x) * ACCUMULATE_WORKGROUP;
+    let origin = vec2<u32>(tile % tiles_x, tile / tiles_x) * ACCUMULATE_TILE;
     let gid = origin + lid.xy;
     load_tile(vec2<i32>(origin) - vec2<i32>(r), span, li);
     workgroupBarrier();

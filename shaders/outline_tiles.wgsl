@@ -50,8 +50,11 @@
 // The marked tiles' indices, the first x of them written, in no order.
 @group(1) @binding(9) var<storage, read_write> tile_list: array<u32>;
 
-// From the generated lib/limits.wgsl: ACCUMULATE_WORKGROUP (the tile's
-// side), MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP and DEPTH_JUMP.
+// The accumulate tile's edge in pixels, as the accumulate pipelines have
+// it (src/render/accumulate.rs, accumulate_tile_px).
+override ACCUMULATE_TILE: u32 = MAX_ACCUMULATE_TILE;
+// From the generated lib/limits.wgsl: MAX_ACCUMULATE_TILE,
+// MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP and DEPTH_JUMP.
 
 
 fn outline_width(id: u32) -> f32 {
@@ -60,15 +63,15 @@ fn outline_width(id: u32) -> f32 {
 
 @compute @workgroup_size(OUTLINE_TILES_WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let tiles = (frame.size_px + vec2<u32>(ACCUMULATE_WORKGROUP - 1u)) / ACCUMULATE_WORKGROUP;
+    let tiles = (frame.size_px + vec2<u32>(ACCUMULATE_TILE - 1u)) / ACCUMULATE_TILE;
     if gid.x >= tiles.x * tiles.y {
         return;
     }
     // The same radius and halo as the accumulate pass's.
     let r = i32(floor(min(frame.max_outline_px, f32(MAX_OUTLINE_RADIUS))));
-    let tile = vec2<i32>(vec2<u32>(gid.x % tiles.x, gid.x / tiles.x) * ACCUMULATE_WORKGROUP);
+    let tile = vec2<i32>(vec2<u32>(gid.x % tiles.x, gid.x / tiles.x) * ACCUMULATE_TILE);
     let size = vec2<i32>(frame.size_px);
-    let core_hi = min(tile + vec2<i32>(i32(ACCUMULATE_WORKGROUP)), size);
+    let core_hi = min(tile + vec2<i32>(i32(ACCUMULATE_TILE)), size);
     let lo = max(tile - vec2<i32>(r), vec2<i32>(0));
     let hi = min(core_hi + vec2<i32>(r), size);
 

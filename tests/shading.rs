@@ -553,7 +553,6 @@ fn outlines_inside_one_object_follow_the_rule() {
 fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
     let gpu = gpu();
     let (w, h, halo) = (384u32, 288u32, 3i64);
-    let tile = celray::gpu::twins::ACCUMULATE_WORKGROUP;
     let ron = outlined_sphere(w, h);
     for mode in [RenderMode::Raster, RenderMode::Raytrace] {
         let OutlineCheck {
@@ -563,6 +562,9 @@ fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
             ..
         } = assert_outlines_follow_the_rule(&gpu, &ron, mode);
         let marks = r.read_outline_tile_marks(&gpu).unwrap();
+        // A 3 px outline: the smaller tiles.
+        let tile = r.outline_tile_px();
+        assert_eq!(tile, celray::gpu::twins::ACCUMULATE_TILES[0]);
         let tiles_x = w.div_ceil(tile);
         assert_eq!(marks.len() as u32, tiles_x * h.div_ceil(tile));
         let (mut quiet, mut silhouette) = (0, 0);

@@ -42,12 +42,12 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("MAX_OUTLINE_RADIUS", twins::MAX_OUTLINE_RADIUS),
         (
             "TILE_TEXELS",
-            (twins::ACCUMULATE_WORKGROUP + 2 * twins::MAX_OUTLINE_RADIUS).pow(2),
+            (twins::MAX_ACCUMULATE_TILE + 2 * twins::MAX_OUTLINE_RADIUS).pow(2),
         ),
         (
             "TILE_ROW_TEXELS",
-            (twins::ACCUMULATE_WORKGROUP + 2 * twins::MAX_OUTLINE_RADIUS)
-                * twins::ACCUMULATE_WORKGROUP,
+            (twins::MAX_ACCUMULATE_TILE + 2 * twins::MAX_OUTLINE_RADIUS)
+                * twins::MAX_ACCUMULATE_TILE,
         ),
         ("TRACE_WORKGROUP", twins::TRACE_WORKGROUP),
         ("TRACED_ROW_ALIGN_PX", twins::TRACED_ROW_ALIGN_PX),
@@ -60,7 +60,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("INSTANCE_ID_BITS", twins::INSTANCE_ID_BITS),
         ("PRIMARY_TILE_WALK", twins::PRIMARY_TILE_WALK),
         ("RAY_BATCH_WORKGROUP", twins::RAY_BATCH_WORKGROUP),
-        ("ACCUMULATE_WORKGROUP", twins::ACCUMULATE_WORKGROUP),
+        ("MAX_ACCUMULATE_TILE", twins::MAX_ACCUMULATE_TILE),
         ("OUTLINE_TILES_WORKGROUP", twins::OUTLINE_TILES_WORKGROUP),
         ("REPROJECT_WORKGROUP", twins::REPROJECT_WORKGROUP),
     ];

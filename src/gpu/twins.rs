@@ -19,9 +19,15 @@ pub const SHADING_BLINN_PHONG: u32 = 0;
 pub const SHADING_TOON: u32 = 1;
 pub const TONE_MAP_CLAMP: u32 = 0;
 pub const TONE_MAP_REINHARD: u32 = 1;
-/// Workgroup edge of the accumulate kernels (8 x 8 invocations), and so
-/// the edge of the tiles the outline marks are made for.
-pub const ACCUMULATE_WORKGROUP: u32 = 8;
+/// Edges (pixels) of the accumulate pass's tiles, one workgroup of the
+/// accumulate kernels each, and the tiles the outline marks are made for:
+/// the first below an outline radius of [`WIDE_OUTLINE_RADIUS`], the
+/// second from it on (`render::accumulate::accumulate_tile_px`).
+pub const ACCUMULATE_TILES: [u32; 2] = [8, MAX_ACCUMULATE_TILE];
+/// The larger edge, which workgroup memory is sized for.
+pub const MAX_ACCUMULATE_TILE: u32 = 16;
+/// The outline radius (px) from which the larger tiles are used.
+pub const WIDE_OUTLINE_RADIUS: u32 = 4;
 /// Workgroup size of the outline tile marks (shaders/outline_tiles.wgsl):
 /// one invocation per accumulate tile.
 pub const OUTLINE_TILES_WORKGROUP: u32 = 64;

@@ -22,7 +22,9 @@
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
-use crate::gpu::twins::{ACCUMULATE_WORKGROUP, OUTLINE_TILES_WORKGROUP};
+use crate::gpu::twins::{
+    ACCUMULATE_TILES, MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP, WIDE_OUTLINE_RADIUS,
+};
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
 use crate::render::targets::Targets;
@@ -66,40 +68,67 @@ pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
 /// its tiles from the list (`shaders/accumulate.wgsl`).
 const OUTLINE_TILES_LISTED: u32 = 1;
 
-pub struct AccumulatePass {
-    /// The `main` kernel reading the raster G-buffer, then the traced one.
-    pipelines: [wgpu::ComputePipeline; 2],
-    /// The `outlined` kernel, the same way.
-    outline_pipelines: [wgpu::ComputePipeline; 2],
-    layout: wgpu::BindGroupLayout,
-    tiles_pipelines: [wgpu::ComputePipeline; 2],
-    tiles_layout: wgpu::BindGroupLayout,
-    /// The scene's shared group.
-    scene_group: Option<wgpu::BindGroup>,
+/// The edge (pixels) of the accumulate pass's tiles, one workgroup each,
+/// for a scene whose widest outline is `max_outline_px`: 8 below an
+/// outline radius of [`WIDE_OUTLINE_RADIUS`], else 16. Smaller tiles skip
+/// more of the image where no outline is near, larger ones load less halo
+/// per pixel; on lavapipe the crossing was at 4 px (a 1.5 px outline:
+/// marks + accumulate 9.6 ms with 8 px tiles against 12.0 with 16; 8 px
+/// outlines: 69 against 61; docs/performance-history.md).
+pub fn accumulate_tile_px(max_outline_px: f32) -> u32 {
+    let radius = max_outline_px.clamp(0.0, MAX_OUTLINE_RADIUS as f32).floor() as u32;
+    ACCUMULATE_TILES[usize::from(radius >= WIDE_OUTLINE_RADIUS)]
+}
+
+/// What the pass binds for one tile edge ([`ACCUMULATE_TILES`]).
+struct TileGroups {
     /// The accumulate group and the tile-marking group, each with both
     /// G-buffers bound: the pipeline reads one.
-    bind_group: Option<wgpu::BindGroup>,
-    tiles_group: Option<wgpu::BindGroup>,
-    /// One word per tile: 1 where the `outlined` kernel searched for
-    /// outlines in the last sample (when the scene has outlines).
-    marks: Option<wgpu::Buffer>,
-    /// The marked tiles' indices, and the `outlined` kernel's indirect
-    /// dispatch (its x counts them; word 3 says whether it is used).
-    tile_list: Option<wgpu::Buffer>,
-    outline_dispatch: Option<wgpu::Buffer>,
+    bind_group: wgpu::BindGroup,
+    tiles_group: wgpu::BindGroup,
+    /// The `outlined` kernel's indirect dispatch (its x counts the marked
+    /// tiles; word 3 says whether it is used).
+    outline_dispatch: wgpu::Buffer,
     /// Whether `outlined` runs over the listed tiles (indirectly), else
     /// over every tile: an image may have more tiles than one dispatch can
-    /// count in x (65,535 on most devices: about 2048 x 2048 pixels, so
-    /// 2560 x 1440 is listed and 3840 x 2160 is not).
+    /// count in x (65,535 on most devices: with 8 px tiles about 2048 x
+    /// 2048 pixels, so 2560 x 1440 is listed and 3840 x 2160 is not).
     listed: bool,
 }
 
-/// The number of accumulate workgroups (tiles) of a target, across and down.
-fn tiles(targets: &Targets) -> (u32, u32) {
+pub struct AccumulatePass {
+    /// Per tile edge ([`ACCUMULATE_TILES`]), the `main` kernel reading the
+    /// raster G-buffer, then the traced one.
+    pipelines: [[wgpu::ComputePipeline; 2]; 2],
+    /// The `outlined` kernel, the same way.
+    outline_pipelines: [[wgpu::ComputePipeline; 2]; 2],
+    layout: wgpu::BindGroupLayout,
+    tiles_pipelines: [[wgpu::ComputePipeline; 2]; 2],
+    tiles_layout: wgpu::BindGroupLayout,
+    /// The scene's shared group.
+    scene_group: Option<wgpu::BindGroup>,
+    /// Per tile edge.
+    groups: Option<[TileGroups; 2]>,
+    /// One word per tile: 1 where the `outlined` kernel searched for
+    /// outlines in the last sample (when the scene has outlines); as many
+    /// as the smaller tiles need.
+    marks: Option<wgpu::Buffer>,
+    /// The marked tiles' indices.
+    tile_list: Option<wgpu::Buffer>,
+}
+
+/// The number of accumulate workgroups (tiles of `tile_px`) of a target,
+/// across and down.
+fn tiles(targets: &Targets, tile_px: u32) -> (u32, u32) {
     (
-        targets.width.div_ceil(ACCUMULATE_WORKGROUP),
-        targets.height.div_ceil(ACCUMULATE_WORKGROUP),
+        targets.width.div_ceil(tile_px),
+        targets.height.div_ceil(tile_px),
     )
+}
+
+/// Index of `tile_px` in [`ACCUMULATE_TILES`].
+fn edge_index(tile_px: u32) -> usize {
+    usize::from(tile_px != ACCUMULATE_TILES[0])
 }
 
 impl AccumulatePass {
@@ -125,32 +154,37 @@ impl AccumulatePass {
                         });
                 (layout, pipeline_layout)
             };
-            // Entry point `entry` of `module`, reading the raster G-buffer,
-            // then the traced one.
+            // Entry point `entry` of `module`, per tile edge, reading the
+            // raster G-buffer, then the traced one.
             let pipelines =
                 |name: &str, pipeline_layout: &wgpu::PipelineLayout, module, entry: &str| {
-                    [false, true].map(|traced| {
-                        gpu.device
-                            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                                label: Some(&format!(
-                                    "{name} pipeline, {entry} ({} G-buffer)",
-                                    if traced { "traced" } else { "raster" }
-                                )),
-                                layout: Some(pipeline_layout),
-                                module,
-                                entry_point: Some(entry),
-                                // The `outlined` kernel writes every texel of
-                                // its workgroup tile before its barrier and reads
-                                // only those (load_tile, outline_at): zeroing the
-                                // tile first would cost every workgroup a pass
-                                // over it and a barrier. (The other kernels have
-                                // no workgroup memory.)
-                                compilation_options: wgpu::PipelineCompilationOptions {
-                                    constants: &[("TRACED_GBUFFER", f64::from(u8::from(traced)))],
-                                    zero_initialize_workgroup_memory: false,
-                                },
-                                cache: None,
-                            })
+                    ACCUMULATE_TILES.map(|tile| {
+                        [false, true].map(|traced| {
+                            gpu.device
+                                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                                    label: Some(&format!(
+                                        "{name} pipeline, {entry} ({tile} px tiles, {} G-buffer)",
+                                        if traced { "traced" } else { "raster" }
+                                    )),
+                                    layout: Some(pipeline_layout),
+                                    module,
+                                    entry_point: Some(entry),
+                                    // The `outlined` kernel writes every texel of
+                                    // its workgroup tile before its barrier and reads
+                                    // only those (load_tile, outline_at): zeroing the
+                                    // tile first would cost every workgroup a pass
+                                    // over it and a barrier. (The other kernels have
+                                    // no workgroup memory.)
+                                    compilation_options: wgpu::PipelineCompilationOptions {
+                                        constants: &[
+                                            ("TRACED_GBUFFER", f64::from(u8::from(traced))),
+                                            ("ACCUMULATE_TILE", f64::from(tile)),
+                                        ],
+                                        zero_initialize_workgroup_memory: false,
+                                    },
+                                    cache: None,
+                                })
+                        })
                     })
                 };
             let (layout, accumulate_layout) = layouts("accumulate", &PASS_LAYOUT);
@@ -171,19 +205,16 @@ impl AccumulatePass {
                 tiles_pipelines,
                 tiles_layout,
                 scene_group: None,
-                bind_group: None,
-                tiles_group: None,
+                groups: None,
                 marks: None,
                 tile_list: None,
-                outline_dispatch: None,
-                listed: true,
             }
         })
     }
 
     /// Bind groups holding the raster G-buffer (raster mode) and the
     /// traced one (hybrid and raytrace modes), with the tile marks and
-    /// list sized to the targets.
+    /// list sized to the targets, for each tile edge.
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
@@ -191,33 +222,20 @@ impl AccumulatePass {
         scene: &SceneBuffers,
         targets: &Targets,
     ) {
-        let (tiles_x, tiles_y) = tiles(targets);
+        // The smaller tiles are the more.
+        let (most_x, most_y) = tiles(targets, ACCUMULATE_TILES[0]);
         let marks = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("outline tile marks"),
-            size: u64::from(tiles_x * tiles_y) * 4,
+            size: u64::from(most_x * most_y) * 4,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
         let tile_list = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("outline tile list"),
-            size: u64::from(tiles_x * tiles_y) * 4,
+            size: u64::from(most_x * most_y) * 4,
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
-        // The marks count the listed tiles in x (zeroed before they run);
-        // y = z = 1.
-        self.listed = gpu.outline_tile_list()
-            && tiles_x * tiles_y <= gpu.device.limits().max_compute_workgroups_per_dimension;
-        let start = [0, 1, 1, if self.listed { OUTLINE_TILES_LISTED } else { 0 }];
-        let outline_dispatch = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("outline dispatch"),
-                contents: bytemuck::cast_slice(&start),
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::INDIRECT
-                    | wgpu::BufferUsages::COPY_DST,
-            });
         let group = |label, layout, entries: &[(u32, wgpu::BindingResource)]| {
             let entries: Vec<_> = entries
                 .iter()
@@ -250,100 +268,144 @@ impl AccumulatePass {
             (7, traced.normal_depth.as_entire_binding()),
             (8, traced.id.as_entire_binding()),
         ];
+        let groups = ACCUMULATE_TILES.map(|tile_px| {
+            let (tiles_x, tiles_y) = tiles(targets, tile_px);
+            // The marks count the listed tiles in x (zeroed before they
+            // run); y = z = 1.
+            let listed = gpu.outline_tile_list()
+                && tiles_x * tiles_y <= gpu.device.limits().max_compute_workgroups_per_dimension;
+            let start = [0, 1, 1, if listed { OUTLINE_TILES_LISTED } else { 0 }];
+            let outline_dispatch =
+                gpu.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("outline dispatch"),
+                        contents: bytemuck::cast_slice(&start),
+                        usage: wgpu::BufferUsages::STORAGE
+                            | wgpu::BufferUsages::INDIRECT
+                            | wgpu::BufferUsages::COPY_DST,
+                    });
+            let bind_group = group(
+                "accumulate bind group",
+                &self.layout,
+                &[
+                    &shared[..],
+                    &[
+                        (4, targets.accum.as_entire_binding()),
+                        (5, marks.as_entire_binding()),
+                        (9, tile_list.as_entire_binding()),
+                        (10, outline_dispatch.as_entire_binding()),
+                    ],
+                ]
+                .concat(),
+            );
+            let tiles_group = group(
+                "outline tiles bind group",
+                &self.tiles_layout,
+                &[
+                    &shared[..],
+                    &[
+                        (4, marks.as_entire_binding()),
+                        (5, outline_dispatch.as_entire_binding()),
+                        (9, tile_list.as_entire_binding()),
+                    ],
+                ]
+                .concat(),
+            );
+            TileGroups {
+                bind_group,
+                tiles_group,
+                outline_dispatch,
+                listed,
+            }
+        });
         self.scene_group = Some(scene.bind_group.clone());
-        self.bind_group = Some(group(
-            "accumulate bind group",
-            &self.layout,
-            &[
-                &shared[..],
-                &[
-                    (4, targets.accum.as_entire_binding()),
-                    (5, marks.as_entire_binding()),
-                    (9, tile_list.as_entire_binding()),
-                    (10, outline_dispatch.as_entire_binding()),
-                ],
-            ]
-            .concat(),
-        ));
-        self.tiles_group = Some(group(
-            "outline tiles bind group",
-            &self.tiles_layout,
-            &[
-                &shared[..],
-                &[
-                    (4, marks.as_entire_binding()),
-                    (5, outline_dispatch.as_entire_binding()),
-                    (9, tile_list.as_entire_binding()),
-                ],
-            ]
-            .concat(),
-        ));
+        self.groups = Some(groups);
         self.marks = Some(marks);
         self.tile_list = Some(tile_list);
-        self.outline_dispatch = Some(outline_dispatch);
     }
 
-    /// Whether `outlined` runs over the listed tiles (else over every tile).
-    pub fn listed(&self) -> bool {
-        self.listed
+    /// Whether `outlined` runs over the listed tiles of `tile_px` (else
+    /// over every tile).
+    pub fn listed(&self, tile_px: u32) -> bool {
+        self.groups
+            .as_ref()
+            .is_some_and(|g| g[edge_index(tile_px)].listed)
     }
 
-    /// The tile marks of the last sample, one per accumulate tile, row by
-    /// row: 1 where the outline search ran, 0 where it was skipped. For
-    /// tests; meaningful only when the scene has outlines.
-    pub fn read_tile_marks(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
+    /// The tile marks of the last sample, one per accumulate tile of
+    /// `tile_px` (the edge that sample used), row by row: 1 where the
+    /// outline search ran, 0 where it was skipped. For tests; meaningful
+    /// only when the scene has outlines.
+    pub fn read_tile_marks(
+        &self,
+        gpu: &Gpu,
+        targets: &Targets,
+        tile_px: u32,
+    ) -> Result<Vec<u32>, GpuError> {
         let marks = self
             .marks
             .as_ref()
             .ok_or_else(|| GpuError::Readback("the accumulate pass is not prepared".into()))?;
         let bytes = readback::copy_and_read(gpu, marks, marks.size(), "tile marks readback")?;
-        Ok(bytemuck::cast_slice(&bytes).to_vec())
+        let (tiles_x, tiles_y) = tiles(targets, tile_px);
+        let words: &[u32] = bytemuck::cast_slice(&bytes);
+        Ok(words[..(tiles_x * tiles_y) as usize].to_vec())
     }
 
-    /// The tile marks and list (`shaders/outline_tiles.wgsl`), in a
-    /// compute pass of their own (its own timer span, "outline_tiles").
-    /// Encode it before [`AccumulatePass::encode`] where the scene has
+    /// The tile marks and list (`shaders/outline_tiles.wgsl`) for tiles of
+    /// `tile_px` ([`accumulate_tile_px`]), in a compute pass of their own
+    /// (its own timer span, "outline_tiles"). Encode it before
+    /// [`AccumulatePass::encode`], with the same tiles, where the scene has
     /// outlines (some material's outline is at least 1 px wide).
     pub fn encode_tiles(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
         traced: bool,
+        tile_px: u32,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
+        let Some(groups) = &self.groups else {
+            return;
+        };
+        let edge = edge_index(tile_px);
         // The list starts empty: x = 0 workgroups (y and z stay 1).
-        if let Some(dispatch) = &self.outline_dispatch {
-            encoder.clear_buffer(dispatch, 0, Some(4));
-        }
-        let (tiles_x, tiles_y) = tiles(targets);
+        encoder.clear_buffer(&groups[edge].outline_dispatch, 0, Some(4));
+        let (tiles_x, tiles_y) = tiles(targets, tile_px);
         let mut pass = self.begin(encoder, "outline tiles pass", timestamp_writes);
-        pass.set_pipeline(&self.tiles_pipelines[usize::from(traced)]);
-        pass.set_bind_group(PASS_GROUP, self.tiles_group.as_ref(), &[]);
+        pass.set_pipeline(&self.tiles_pipelines[edge][usize::from(traced)]);
+        pass.set_bind_group(PASS_GROUP, &groups[edge].tiles_group, &[]);
         pass.dispatch_workgroups((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1, 1);
     }
 
-    /// The accumulation: `main` over every tile, then, where the scene has
-    /// `outlines` (and [`AccumulatePass::encode_tiles`] marked and listed
-    /// this sample's tiles), `outlined` over the listed tiles (over every
-    /// tile where there are too many to list, or where
-    /// [`Gpu::set_outline_tile_list`] turned the list off).
+    /// The accumulation over tiles of `tile_px`: `main` over every tile,
+    /// then, where the scene has `outlines` (and
+    /// [`AccumulatePass::encode_tiles`] marked and listed this sample's
+    /// tiles), `outlined` over the listed tiles (over every tile where
+    /// there are too many to list, or where [`Gpu::set_outline_tile_list`]
+    /// turned the list off).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
         traced: bool,
         outlines: bool,
+        tile_px: u32,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        let (tiles_x, tiles_y) = tiles(targets);
+        let Some(groups) = &self.groups else {
+            return;
+        };
+        let edge = edge_index(tile_px);
+        let (tiles_x, tiles_y) = tiles(targets, tile_px);
         let mut pass = self.begin(encoder, "accumulate pass", timestamp_writes);
-        pass.set_pipeline(&self.pipelines[usize::from(traced)]);
-        pass.set_bind_group(PASS_GROUP, self.bind_group.as_ref(), &[]);
+        pass.set_pipeline(&self.pipelines[edge][usize::from(traced)]);
+        pass.set_bind_group(PASS_GROUP, &groups[edge].bind_group, &[]);
         pass.dispatch_workgroups(tiles_x, tiles_y, 1);
-        if let (true, Some(dispatch)) = (outlines, &self.outline_dispatch) {
-            pass.set_pipeline(&self.outline_pipelines[usize::from(traced)]);
-            if self.listed {
-                pass.dispatch_workgroups_indirect(dispatch, 0);
+        if outlines {
+            pass.set_pipeline(&self.outline_pipelines[edge][usize::from(traced)]);
+            if groups[edge].listed {
+                pass.dispatch_workgroups_indirect(&groups[edge].outline_dispatch, 0);
             } else {
                 pass.dispatch_workgroups(tiles_x, tiles_y, 1);
             }
@@ -363,5 +425,27 @@ impl AccumulatePass {
         });
         pass.set_bind_group(SCENE_GROUP, self.scene_group.as_ref(), &[]);
         pass
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Outlines narrower than 4 px take the 8 px tiles, wider ones (and
+    /// widths past the search's cap) the 16 px tiles; no outline at all,
+    /// the smaller.
+    #[test]
+    fn wide_outlines_take_the_larger_tiles() {
+        for (width, tile) in [
+            (0.0, 8),
+            (1.5, 8),
+            (3.99, 8),
+            (4.0, 16),
+            (8.0, 16),
+            (100.0, 16),
+        ] {
+            assert_eq!(accumulate_tile_px(width), tile, "{width} px");
+        }
     }
 }

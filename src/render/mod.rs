@@ -729,6 +729,7 @@ impl Renderer {
         });
         // An outline under 1 px reaches no other pixel (search radius 0).
         let outlines = self.max_outline_px() >= 1.0;
+        let tile_px = self.outline_tile_px();
         let mut timer = self.timer.as_mut().filter(|_| timed);
         let traced = mode != RenderMode::Raster;
         if let Some((pass, _)) = &moving {
@@ -768,6 +769,7 @@ impl Renderer {
                 &mut encoder,
                 &self.targets,
                 traced,
+                tile_px,
                 timer
                     .as_mut()
                     .and_then(|t| t.timer.compute_writes(t.outline_tiles)),
@@ -778,6 +780,7 @@ impl Renderer {
             &self.targets,
             traced,
             outlines,
+            tile_px,
             timer
                 .as_mut()
                 .and_then(|t| t.timer.compute_writes(t.accumulate)),
@@ -988,17 +991,25 @@ impl Renderer {
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 
-    /// Per accumulate tile (8 x 8 pixels, row by row), whether the last
-    /// sample's outline search ran there (1) or was skipped (0). For tests.
+    /// Per accumulate tile ([`Renderer::outline_tile_px`] on a side, row by
+    /// row), whether the last sample's outline search ran there (1) or was
+    /// skipped (0). For tests.
     pub fn read_outline_tile_marks(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
-        self.accumulate.read_tile_marks(gpu)
+        self.accumulate
+            .read_tile_marks(gpu, &self.targets, self.outline_tile_px())
+    }
+
+    /// The edge (pixels) of the accumulate pass's tiles for this scene's
+    /// outlines ([`accumulate::accumulate_tile_px`]).
+    pub fn outline_tile_px(&self) -> u32 {
+        accumulate::accumulate_tile_px(self.max_outline_px())
     }
 
     /// Whether the outline search runs over the list of marked tiles (one
     /// indirect dispatch), else over every tile ([`Gpu::set_outline_tile_list`],
     /// or more tiles than one dispatch may count). For tests.
     pub fn outline_search_listed(&self) -> bool {
-        self.accumulate.listed()
+        self.accumulate.listed(self.outline_tile_px())
     }
 
     /// How this renderer's samples find primary visibility: the settings'
