@@ -148,18 +148,26 @@ fn shadow_query(i: u32, o: vec3<f32>, l: vec3<f32>, receiver: u32, leaving: u32)
 }
 
 // Whether the ray from o along unit l may meet the world bounding sphere
-// at shadow_cells[s] (centre, radius: shadow_cull.rs, bounding_sphere):
-// false only where the sphere lies wholly behind o or off the ray's line
-// by more than its radius. The radius is grown by 1e-5 of the sizes
-// involved: the rounding of these sums, and the intersection test's in
-// object space, stay under a few ulp (1.2e-7 each) of the same sizes,
-// so a ray this refuses is one that test misses.
+// at shadow_cells[s] (centre, radius: shadow_cull.rs, bounding_sphere;
+// a negative radius: no check, true): false only where the sphere lies
+// wholly behind o or off the ray's line by more than its radius. The
+// radius is grown by 1e-5 of the sizes involved, for the rounding of
+// these sums and of a box's slab test, and by 6.4e-5 D^2 / R (D the
+// centre's distance from o): a sphere's test, b^2 - ac near a tangent,
+// may report a hit up to about 2e-7 D^2 / R beyond it, 16 times that
+// where it is stretched 4x (the most a sphere with a check may be), and
+// the margin is 20 times more. So a ray this refuses is one that the
+// intersection test misses.
 fn may_meet_sphere(s: u32, o: vec3<f32>, l: vec3<f32>) -> bool {
     let sphere = shadow_spheres[s / 4u];
+    if sphere.w < 0.0 {
+        return true;
+    }
     let c = sphere.xyz - o;
     let along = dot(c, l);
     let off = c - l * along;
-    let slack = 1.0e-5 * (sphere.w + dot(abs(sphere.xyz), vec3<f32>(1.0)) + dot(abs(o), vec3<f32>(1.0)));
+    let slack = 1.0e-5 * (sphere.w + dot(abs(sphere.xyz), vec3<f32>(1.0)) + dot(abs(o), vec3<f32>(1.0)))
+        + 6.4e-5 * dot(c, c) / sphere.w;
     let radius = sphere.w + slack;
     return dot(off, off) <= radius * radius && along >= -radius;
 }
@@ -171,7 +179,7 @@ fn may_meet_sphere(s: u32, o: vec3<f32>, l: vec3<f32>) -> bool {
 // Where the instances are not in their uniform copy, one whose bounding
 // sphere (from shadow_cells[spheres]) the ray misses is not tested
 // further: on the CPU driver that skips the per-lane storage loads of its
-// matrix (trace pass 0.93 of the time at 100,000 spheres; with the copy
+// matrix (trace pass 0.92 of the time at 100,000 spheres; with the copy
 // the check cost more than it saved, docs/performance-history.md).
 fn list_blocks(r: u32, o: vec3<f32>, l: vec3<f32>, t_max: f32, leaving: u32, spheres: u32) -> bool {
     let header = shadow_cells[r];

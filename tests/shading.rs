@@ -282,7 +282,8 @@ fn outline_width_is_in_pixels_at_any_resolution() {
 }
 
 /// A toon sphere with an 8 px magenta outline on black, in an image whose
-/// size is no multiple of the accumulate pass's 8 px tiles, with the
+/// size is no multiple of the accumulate pass's 16 px tiles (an 8 px
+/// outline takes the larger tiles), with the
 /// sphere near its corner. On the background the outline rule is exact
 /// and needs only the id buffer: a background pixel is outlined iff some
 /// sphere pixel lies within 8 px of it (dx^2 + dy^2 <= 64; the sphere is
@@ -626,7 +627,7 @@ fn outlined_sphere(w: u32, h: u32) -> String {
 
 /// The accumulate pass searches for outlines in a kernel of its own, over
 /// the list of marked tiles (one indirect dispatch); where an image has
-/// more tiles than one dispatch can count (over about 4096 x 4096 pixels
+/// more tiles than one dispatch can count (over about 2048 x 2048 pixels with 8 px tiles
 /// on most devices) it runs over every tile instead, the unmarked ones
 /// stopping at once, and `main` takes every unmarked tile. So each pixel
 /// must be summed by exactly one of the two kernels each sample: after 3

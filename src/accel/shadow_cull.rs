@@ -247,41 +247,44 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
 }
 
 /// A sphere (centre xyz, radius w) around all of instance k in world
-/// space, over its whole shutter: the smaller of its world box's
-/// circumsphere and, for a static sphere or CSG solid, its object-space
-/// bounding sphere taken to world space (the radius scaled by the matrix's
-/// largest stretch, bounded above by Gershgorin's circle theorem, exactly
-/// for rotations with uniform scale). The kernel's list test skips an
-/// occluder whose sphere the ray misses (trace.wgsl, `may_meet_sphere`,
-/// which adds the rounding margin).
+/// space, which the kernel's list test uses to skip occluders a ray
+/// misses (trace.wgsl, `may_meet_sphere`, which adds the rounding
+/// margin); w = -1 where it must not: only boxes (their world box's
+/// circumsphere, over the whole shutter) and static spheres get one. A
+/// sphere's radius is scaled by the matrix's largest stretch, bounded
+/// above by Gershgorin's circle theorem (exact for rotations with uniform
+/// scale); spheres stretched more than 4x in one direction against
+/// another get none, since the sphere test's rounding near a tangent
+/// grows with that ratio squared and the kernel's margin allows for 4.
+/// Other shapes get none: their tests' rounding is not bounded by these
+/// radii.
 fn bounding_sphere(accel: &SceneAccel, k: usize) -> glam::Vec4 {
+    let none = glam::Vec4::new(0.0, 0.0, 0.0, -1.0);
     let b = accel.world_bounds[k];
-    let boxed = ((b.min + b.max) * 0.5).extend((b.max - b.min).length() * 0.5);
     let (world_from_object, _, shape) = accel.instances[k];
     let shape = accel.shapes[shape as usize];
-    let object = match shape.kind {
-        _ if accel.moving[k] => None,
-        SHAPE_SPHERE => Some((Vec3::ZERO, shape.params[0])),
-        SHAPE_CSG => Some((Vec3::from_slice(&shape.params[..3]), shape.params[3])),
-        _ => None,
-    };
-    let Some((centre, radius)) = object else {
-        return boxed;
-    };
-    let m = glam::Mat3::from_mat4(world_from_object);
-    // Symmetric: its columns are its rows.
-    let gram = m.transpose() * m;
-    let largest = [gram.x_axis, gram.y_axis, gram.z_axis]
-        .map(|r| r.abs().element_sum())
-        .into_iter()
-        .fold(0.0, f32::max);
-    let sphere = world_from_object
-        .transform_point3(centre)
-        .extend(radius * largest.sqrt());
-    if sphere.w < boxed.w {
-        sphere
-    } else {
-        boxed
+    match shape.kind {
+        SHAPE_BOX => ((b.min + b.max) * 0.5).extend((b.max - b.min).length() * 0.5),
+        SHAPE_SPHERE if !accel.moving[k] => {
+            let m = glam::Mat3::from_mat4(world_from_object);
+            // Symmetric: its columns are its rows.
+            let gram = m.transpose() * m;
+            let largest = [gram.x_axis, gram.y_axis, gram.z_axis]
+                .map(|r| r.abs().element_sum())
+                .into_iter()
+                .fold(0.0, f32::max);
+            // The eigenvalues' product is the determinant and the middle
+            // one is at most the largest, so largest^3 / det bounds the
+            // ratio of the largest to the smallest: the stretch ratio^2.
+            let det = gram.determinant();
+            if !(det > 0.0 && largest.powi(3) <= 16.0 * det) {
+                return none;
+            }
+            world_from_object
+                .transform_point3(Vec3::ZERO)
+                .extend(shape.params[0] * largest.sqrt())
+        }
+        _ => none,
     }
 }
 
@@ -952,15 +955,14 @@ mod tests {
         );
     }
 
-    /// Every instance lies inside its world bounding sphere, which the
-    /// kernel's list test uses to skip occluders a ray misses: points over
-    /// each static sphere's and CSG solid's object-space bounding sphere,
-    /// taken to world space, and the corners of every other instance's
-    /// world box (over its motion) are within the radius, to 1e-6 of it
-    /// (the f32 rounding of the transform, a few ulp). And the spheres are
-    /// tight where they can be: a ball only moved or scaled uniformly gets
-    /// its own radius (0.5, 0.25), a ball stretched 2x along x twice its
-    /// radius, not the larger circumsphere of their boxes.
+    /// Every box and static sphere lies inside its world bounding sphere,
+    /// which the kernel's list test uses to skip occluders a ray misses:
+    /// points over each sphere, taken to world space, and the corners of
+    /// each box's world box are within the radius, to 1e-6 of it (the f32
+    /// rounding of the transform, a few ulp). The spheres are tight: a
+    /// ball only moved or scaled uniformly gets its own radius (0.5,
+    /// 0.25), a ball stretched 2x along x twice its radius. A moving ball,
+    /// the cylinder, the CSG solid, the planes and the mesh get none (-1).
     #[test]
     fn bounding_spheres_hold_their_instances() {
         let (_, accel) = scene("(-0.5, -1.0, -0.6)");
@@ -977,22 +979,22 @@ mod tests {
             };
             let (world_from_object, _, shape) = accel.instances[k];
             let shape = accel.shapes[shape as usize];
-            let object = match shape.kind {
-                SHAPE_SPHERE => Some((Vec3::ZERO, shape.params[0])),
-                SHAPE_CSG => Some((Vec3::from_slice(&shape.params[..3]), shape.params[3])),
-                _ => None,
-            };
-            match object {
-                Some((c, r)) if !accel.moving[k] => on_sphere
+            match shape.kind {
+                SHAPE_SPHERE if !accel.moving[k] => on_sphere
                     .iter()
                     .filter(|p| p.length() > 1e-3)
                     .for_each(|p| {
-                        inside(world_from_object.transform_point3(c + p.normalize() * r))
+                        inside(world_from_object.transform_point3(p.normalize() * shape.params[0]))
                     }),
-                _ => accel.world_bounds[k].corners().into_iter().for_each(inside),
+                SHAPE_BOX => accel.world_bounds[k].corners().into_iter().for_each(inside),
+                _ => assert_eq!(
+                    s.w, -1.0,
+                    "instance {k} (kind {}) gets no sphere",
+                    shape.kind
+                ),
             }
         }
-        for (k, radius) in [(3, 0.5), (9, 0.25), (4, 1.0)] {
+        for (k, radius) in [(3, 0.5), (9, 0.25), (4, 1.0), (5, -1.0), (7, -1.0)] {
             let r = bounding_sphere(&accel, k).w;
             assert!(
                 (r - radius).abs() <= 1e-6,
