@@ -35,9 +35,9 @@
 // `outlined`'s indirect dispatch (x, y, z workgroups) and, in word 3, how
 // it finds its tile: OUTLINE_TILES_LISTED, workgroup k takes tile_list[k];
 // else the dispatch is every tile's workgroup, and the unmarked ones stop at
-// once (images with more tiles than one dispatch's x may count, about
-// 2048 x 2048 pixels with 8 px tiles, 4096 x 4096 with 16 px:
-// src/render/accumulate.rs).
+// once (images with more tiles than one dispatch's x may count: over
+// about 4096 x 4096 pixels, since 8 px tiles are used only where they can
+// be listed; src/render/accumulate.rs).
 @group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, 4>;
 const OUTLINE_TILES_LISTED: u32 = 1u;
 

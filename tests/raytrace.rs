@@ -428,7 +428,9 @@ fn toggling_a_lights_shadows_takes_effect() {
 /// so the warm-up is handed the keys and must draw with them; a bounce
 /// count changes the trace variant (the ball reflects); temporal
 /// reprojection adds the reproject pass, which runs only on a moving
-/// frame, so the warm-up must draw one; a switch from hybrid to raster may
+/// frame, so the warm-up must draw one; a first outline adds the
+/// accumulate pass's outline kernels, and a 6 px one its 16 px tiles,
+/// which the warm-up, drawing at 16 x 16 px, must keep; a switch from hybrid to raster may
 /// change what rays walk, and an added light uploads the scene again, so
 /// neither is predicted.
 #[test]
@@ -473,7 +475,7 @@ fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
     drop(fresh);
     let mut warmer = Warmer::new(&gpu);
     // The pipelines a warm-up of this change drew with, once it is done.
-    let mut warm = |settings: &RenderSettings, keys| {
+    let mut warm = |scene: &celray::scene::Scene, settings: &RenderSettings, keys| {
         let job = warmer
             .request(&gpu, scene.clone(), settings.clone(), Some(keys))
             .expect("a warm-up thread");
@@ -485,7 +487,7 @@ fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
         }
     };
     assert_eq!(
-        warm(&hybrid, off),
+        warm(&scene, &hybrid, off),
         Some(off),
         "the warm-up draws with the keys it is given"
     );
@@ -512,13 +514,38 @@ fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
         "not built before the switch"
     );
     assert_eq!(
-        warm(&temporal, reprojecting),
+        warm(&scene, &temporal, reprojecting),
         Some(reprojecting),
         "the warm-up draws a moving frame, through the reproject pass"
     );
-    r.set_settings(&gpu, temporal).unwrap();
+    r.set_settings(&gpu, temporal.clone()).unwrap();
     assert_eq!(r.pipeline_keys(), reprojecting);
     assert!(r.has_pipelines(&reprojecting));
+
+    // A first outline runs the accumulate pass's outline kernels, and one
+    // of 4 px or more its larger tiles: kernels this renderer has not run.
+    let mut keys_by_width = Vec::new();
+    for width in [1.5, 6.0] {
+        scene.materials[1].outline_width_px = width;
+        let outlined = r.keys_for_edit(&scene).expect("written in place");
+        assert!(
+            !r.has_pipelines(&outlined),
+            "{width} px: not run before the edit"
+        );
+        assert_eq!(
+            warm(&scene, &temporal, outlined),
+            Some(outlined),
+            "{width} px: the warm-up keeps the view's tiles at its own size"
+        );
+        r.update_scene(&gpu, scene.clone()).unwrap();
+        assert_eq!(r.pipeline_keys(), outlined);
+        r.render_sample(&gpu).unwrap();
+        keys_by_width.push(outlined);
+    }
+    assert_ne!(keys_by_width[0], keys_by_width[1], "other tiles");
+    scene.materials[1].outline_width_px = 1.5;
+    assert_eq!(r.keys_for_edit(&scene), Some(keys_by_width[0]));
+    assert!(r.has_pipelines(&keys_by_width[0]), "run before");
     let raster = settings(&scene, RenderMode::Raster);
     assert_eq!(r.keys_for_settings(&raster), None);
     let mut more_lights = scene.clone();

@@ -423,6 +423,7 @@ fn assert_outlines_follow_the_rule(
 ) -> OutlineCheck {
     let scene = scene(ron);
     let (w, h) = (scene.camera.width, scene.camera.height);
+    let width_px = (scene.materials.iter()).fold(0.0f32, |w, m| w.max(m.outline_width_px));
     let settings = RenderSettings {
         mode,
         ..pixel_centre_settings(&scene)
@@ -431,7 +432,7 @@ fn assert_outlines_follow_the_rule(
     let img = r.read_srgb8(gpu).unwrap();
     let ids = r.read_ids(gpu).unwrap();
     let nd = r.read_normal_depth(gpu).unwrap();
-    let rule = outline_rule(&ids, &nd, w, h, 3.0);
+    let rule = outline_rule(&ids, &nd, w, h, width_px);
     let (mut inside, mut unsure) = (0, 0);
     for y in 0..h {
         for x in 0..w {
@@ -554,7 +555,7 @@ fn outlines_inside_one_object_follow_the_rule() {
 fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
     let gpu = gpu();
     let (w, h, halo) = (384u32, 288u32, 3i64);
-    let ron = outlined_sphere(w, h);
+    let ron = outlined_sphere(w, h, 3.0);
     for mode in [RenderMode::Raster, RenderMode::Raytrace] {
         let OutlineCheck {
             renderer: r,
@@ -609,16 +610,16 @@ fn the_quiet_middle_of_a_sphere_skips_the_outline_search() {
     }
 }
 
-/// A sphere filling the middle of a `w` x `h` view, with 3 px magenta
-/// outlines, on a black background.
-fn outlined_sphere(w: u32, h: u32) -> String {
+/// A sphere filling the middle of a `w` x `h` view, with magenta outlines
+/// `outline_px` wide, on a black background.
+fn outlined_sphere(w: u32, h: u32, outline_px: f32) -> String {
     format!(
         r#"(version: 1,
             camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 20.0, width: {w}, height: {h}),
             ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
             lights: [Directional(direction: (-0.5, -0.5, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
             materials: {{ "m": (base_color: (0.2, 0.8, 0.2), specular_color: (0.0, 0.0, 0.0), model: Toon(bands: 3),
-                           outline_color: (1.0, 0.0, 1.0), outline_width_px: 3.0) }},
+                           outline_color: (1.0, 0.0, 1.0), outline_width_px: {outline_px:?}) }},
             shapes: {{ "ball": Sphere(radius: 1.0) }},
             instances: [(shape: "ball", material: "m")],
         )"#
@@ -627,7 +628,7 @@ fn outlined_sphere(w: u32, h: u32) -> String {
 
 /// The accumulate pass searches for outlines in a kernel of its own, over
 /// the list of marked tiles (one indirect dispatch); where an image has
-/// more tiles than one dispatch can count (over about 2048 x 2048 pixels with 8 px tiles
+/// more tiles than one dispatch can count (over about 4096 x 4096 pixels
 /// on most devices) it runs over every tile instead, the unmarked ones
 /// stopping at once, and `main` takes every unmarked tile. So each pixel
 /// must be summed by exactly one of the two kernels each sample: after 3
@@ -635,12 +636,18 @@ fn outlined_sphere(w: u32, h: u32) -> String {
 /// both paths (a pixel left to neither holds 0, one taken by both 5), and
 /// both paths hold the same sums, bit for bit. The image is 390 x 290, so
 /// the last column and row of tiles are partial. At one sample per pixel
-/// centre, both paths also follow the outline rule.
+/// centre, both paths also follow the outline rule. Both tile edges: 3 px
+/// outlines take the 8 px tiles, 5 px ones (raytrace mode only, to keep
+/// the test short) the 16 px tiles.
 #[test]
 fn each_pixel_is_summed_once_over_the_tile_list_and_over_every_tile() {
     let gpu = gpu();
-    let ron = outlined_sphere(390, 290);
-    for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+    for (mode, outline_px, tile_px) in [
+        (RenderMode::Raster, 3.0, 8),
+        (RenderMode::Raytrace, 3.0, 8),
+        (RenderMode::Raytrace, 5.0, 16),
+    ] {
+        let ron = outlined_sphere(390, 290, outline_px);
         let mut sums = Vec::new();
         for listed in [true, false] {
             gpu.set_outline_tile_list(listed);
@@ -659,6 +666,7 @@ fn each_pixel_is_summed_once_over_the_tile_list_and_over_every_tile() {
             };
             let r = rendered(&gpu, scene, settings);
             assert_eq!(r.outline_search_listed(), listed, "{}", mode.name());
+            assert_eq!(r.outline_tile_px(), tile_px, "{outline_px} px outlines");
             let accum = r.read_accumulator(&gpu).unwrap();
             let marks = r.read_outline_tile_marks(&gpu).unwrap();
             assert!(

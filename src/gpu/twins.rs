@@ -21,8 +21,9 @@ pub const TONE_MAP_CLAMP: u32 = 0;
 pub const TONE_MAP_REINHARD: u32 = 1;
 /// Edges (pixels) of the accumulate pass's tiles, one workgroup of the
 /// accumulate kernels each, and the tiles the outline marks are made for:
-/// the first below an outline radius of [`WIDE_OUTLINE_RADIUS`], the
-/// second from it on (`render::accumulate::accumulate_tile_px`).
+/// the first below an outline radius of [`WIDE_OUTLINE_RADIUS`] (where one
+/// dispatch can count them), the second otherwise
+/// (`render::accumulate::accumulate_tile_px`).
 pub const ACCUMULATE_TILES: [u32; 2] = [8, MAX_ACCUMULATE_TILE];
 /// The larger edge, which workgroup memory is sized for.
 pub const MAX_ACCUMULATE_TILE: u32 = 16;

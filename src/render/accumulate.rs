@@ -69,15 +69,40 @@ pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
 const OUTLINE_TILES_LISTED: u32 = 1;
 
 /// The edge (pixels) of the accumulate pass's tiles, one workgroup each,
-/// for a scene whose widest outline is `max_outline_px`: 8 below an
-/// outline radius of [`WIDE_OUTLINE_RADIUS`], else 16. Smaller tiles skip
-/// more of the image where no outline is near, larger ones load less halo
-/// per pixel; on lavapipe the crossing was at 4 px (a 1.5 px outline:
-/// marks + accumulate 9.6 ms with 8 px tiles against 12.0 with 16; 8 px
-/// outlines: 69 against 61; docs/performance-history.md).
-pub fn accumulate_tile_px(max_outline_px: f32) -> u32 {
+/// for a `width` x `height` image whose widest outline is
+/// `max_outline_px`: 8 below an outline radius of [`WIDE_OUTLINE_RADIUS`],
+/// else 16. Smaller tiles skip more of the image where no outline is near,
+/// larger ones load less halo per pixel; on lavapipe the crossing was at
+/// 4 px (a 1.5 px outline: marks + accumulate 9.6 ms with 8 px tiles
+/// against 12.0 with 16; 8 px outlines: 69 against 61;
+/// docs/performance-history.md). An image with more 8 px tiles than one
+/// dispatch may count in x (`max_workgroups`, 65,535 on most devices:
+/// about 2048 x 2048 pixels, so 3840 x 2160) takes the 16 px tiles too,
+/// which the outline marks can still list.
+pub fn accumulate_tile_px(
+    max_outline_px: f32,
+    width: u32,
+    height: u32,
+    max_workgroups: u32,
+) -> u32 {
     let radius = max_outline_px.clamp(0.0, MAX_OUTLINE_RADIUS as f32).floor() as u32;
-    ACCUMULATE_TILES[usize::from(radius >= WIDE_OUTLINE_RADIUS)]
+    let small = ACCUMULATE_TILES[0];
+    let small_tiles = u64::from(width.div_ceil(small)) * u64::from(height.div_ceil(small));
+    let wide = radius >= WIDE_OUTLINE_RADIUS || small_tiles > u64::from(max_workgroups);
+    ACCUMULATE_TILES[usize::from(wide)]
+}
+
+/// The accumulate pass's kernels that a sample runs, by what selects
+/// them: part of a renderer's pipeline keys ([`crate::render::PipelineKeys`]),
+/// since lavapipe compiles each on its first run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Kernels {
+    /// The tile edge ([`accumulate_tile_px`]).
+    pub tile_px: u32,
+    /// Whether they read the traced G-buffer (else the raster one).
+    pub traced: bool,
+    /// Whether the outline marks and search run (an outline of 1 px or more).
+    pub outlines: bool,
 }
 
 /// What the pass binds for one tile edge ([`ACCUMULATE_TILES`]).
@@ -91,8 +116,9 @@ struct TileGroups {
     outline_dispatch: wgpu::Buffer,
     /// Whether `outlined` runs over the listed tiles (indirectly), else
     /// over every tile: an image may have more tiles than one dispatch can
-    /// count in x (65,535 on most devices: with 8 px tiles about 2048 x
-    /// 2048 pixels, so 2560 x 1440 is listed and 3840 x 2160 is not).
+    /// count in x (65,535 on most devices; [`accumulate_tile_px`] takes
+    /// the 8 px tiles only where they can be listed, and 16 px tiles are
+    /// listed up to about 4096 x 4096 pixels).
     listed: bool,
 }
 
@@ -115,6 +141,10 @@ pub struct AccumulatePass {
     marks: Option<wgpu::Buffer>,
     /// The marked tiles' indices.
     tile_list: Option<wgpu::Buffer>,
+    /// The kernels that have run ([`AccumulatePass::note_run`]).
+    ran: Vec<Kernels>,
+    /// The most workgroups a dispatch may count in x.
+    max_workgroups: u32,
 }
 
 /// The number of accumulate workgroups (tiles of `tile_px`) of a target,
@@ -208,6 +238,8 @@ impl AccumulatePass {
                 groups: None,
                 marks: None,
                 tile_list: None,
+                ran: Vec::new(),
+                max_workgroups: gpu.device.limits().max_compute_workgroups_per_dimension,
             }
         })
     }
@@ -324,6 +356,26 @@ impl AccumulatePass {
         self.tile_list = Some(tile_list);
     }
 
+    /// The tile edge for a `width` x `height` image whose widest outline
+    /// is `max_outline_px` ([`accumulate_tile_px`], with this device's
+    /// dispatch limit).
+    pub fn tile_px(&self, max_outline_px: f32, width: u32, height: u32) -> u32 {
+        accumulate_tile_px(max_outline_px, width, height, self.max_workgroups)
+    }
+
+    /// Records that a sample runs `kernels`: their code is compiled from
+    /// then on.
+    pub fn note_run(&mut self, kernels: Kernels) {
+        if !self.ran.contains(&kernels) {
+            self.ran.push(kernels);
+        }
+    }
+
+    /// Whether `kernels` have run ([`AccumulatePass::note_run`]).
+    pub fn has_run(&self, kernels: Kernels) -> bool {
+        self.ran.contains(&kernels)
+    }
+
     /// Whether `outlined` runs over the listed tiles of `tile_px` (else
     /// over every tile).
     pub fn listed(&self, tile_px: u32) -> bool {
@@ -434,7 +486,7 @@ mod tests {
 
     /// Outlines narrower than 4 px take the 8 px tiles, wider ones (and
     /// widths past the search's cap) the 16 px tiles; no outline at all,
-    /// the smaller.
+    /// the smaller. At 1280 x 720.
     #[test]
     fn wide_outlines_take_the_larger_tiles() {
         for (width, tile) in [
@@ -445,7 +497,30 @@ mod tests {
             (8.0, 16),
             (100.0, 16),
         ] {
-            assert_eq!(accumulate_tile_px(width), tile, "{width} px");
+            assert_eq!(
+                accumulate_tile_px(width, 1280, 720, 65_535),
+                tile,
+                "{width} px"
+            );
+        }
+    }
+
+    /// Where one dispatch cannot count the 8 px tiles in x (65,535 here),
+    /// the tiles are 16 px, whose count it can: 2560 x 1440 has 320 x 180
+    /// = 57,600 small tiles (listed), 3840 x 2160 has 129,600 (not:
+    /// 32,400 large ones instead), 2048 x 2040 65,280, 2048 x 2048 exactly 65,536, one too
+    /// many; 16384 x 16384 would also dispatch 65,536 marking workgroups
+    /// of 64 small tiles.
+    #[test]
+    fn images_with_too_many_small_tiles_take_the_larger_tiles() {
+        for (w, h, tile) in [
+            (2560, 1440, 8),
+            (3840, 2160, 16),
+            (2048, 2040, 8),
+            (2048, 2048, 16),
+            (16384, 16384, 16),
+        ] {
+            assert_eq!(accumulate_tile_px(1.5, w, h, 65_535), tile, "{w} x {h}");
         }
     }
 }

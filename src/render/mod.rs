@@ -65,17 +65,29 @@ pub const PASS_NAMES: [&str; 5] = [
     "reproject",
 ];
 
+/// The widest outline of any of `scene`'s materials, in pixels, capped at
+/// the accumulate pass's search radius.
+fn max_outline_px(scene: &Scene) -> f32 {
+    scene
+        .materials
+        .iter()
+        .map(|m| m.outline_width_px)
+        .fold(0.0f32, f32::max)
+        .min(crate::gpu::twins::MAX_OUTLINE_RADIUS as f32)
+}
+
 /// The pipelines a renderer draws with, by their cache keys: the raster
-/// and trace variants, whether rays walk the driver's structures, and
-/// whether moving frames run the reproject pass (temporal reprojection
-/// on). A change that needs new ones pays for their compilation on its
-/// first frame ([`Renderer::has_pipelines`]).
+/// and trace variants, whether rays walk the driver's structures, whether
+/// moving frames run the reproject pass (temporal reprojection on), and
+/// the accumulate kernels. A change that needs new ones pays for their
+/// compilation on its first frame ([`Renderer::has_pipelines`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct PipelineKeys {
     raster: raster::RasterVariant,
     trace: trace::Variant,
     driver: bool,
     reproject: bool,
+    accumulate: accumulate::Kernels,
 }
 
 /// GPU time of a sample's passes: one timer, one span per pass.
@@ -166,6 +178,9 @@ pub struct Renderer {
     driver: Option<DriverAccel>,
     /// Why the driver path was asked for but not taken (one line).
     accel_notice: Option<String>,
+    /// The accumulate tile edge [`Renderer::use_pipelines`] was given, in
+    /// place of the one the image's size and outlines choose.
+    tile_px: Option<u32>,
 }
 
 /// The driver's structures for `scene` where `settings.accel` asks for them
@@ -235,6 +250,7 @@ impl Renderer {
             accel_notice,
             reproject: None,
             temporal: TemporalState::default(),
+            tile_px: None,
         };
         renderer.bind(gpu)?;
         Ok(renderer)
@@ -425,17 +441,35 @@ impl Renderer {
             trace: self.trace.variant(),
             driver: self.trace.uses_driver(),
             reproject: self.settings.temporal != Temporal::Off,
+            accumulate: self.accumulate_kernels(&self.scene, &self.settings),
         }
     }
 
     /// Whether the renderer has built every pipeline of `keys` (on a
     /// pipeline's first run, a driver that compiles lazily, as lavapipe
-    /// does, compiles it: seconds on the CPU driver).
+    /// does, compiles it: seconds on the CPU driver). The accumulate
+    /// kernels are all built up front, so theirs count once they have run
+    /// (or are the ones the renderer draws with now, which its next
+    /// sample runs).
     pub fn has_pipelines(&self, keys: &PipelineKeys) -> bool {
+        let now = self.accumulate_kernels(&self.scene, &self.settings);
         keys.driver == self.trace.uses_driver()
             && self.raster.has_variant(keys.raster)
             && self.trace.has_variant(keys.trace)
             && (!keys.reproject || self.reproject.is_some())
+            && (keys.accumulate == now || self.accumulate.has_run(keys.accumulate))
+    }
+
+    /// The accumulate kernels a sample of `scene` with `settings` runs.
+    fn accumulate_kernels(&self, scene: &Scene, settings: &RenderSettings) -> accumulate::Kernels {
+        let widest = max_outline_px(scene);
+        accumulate::Kernels {
+            tile_px: self.tile_px.unwrap_or_else(|| {
+                (self.accumulate).tile_px(widest, settings.width, settings.height)
+            }),
+            traced: settings.mode != RenderMode::Raster,
+            outlines: widest >= 1.0,
+        }
     }
 
     /// The pipelines [`Renderer::update_scene`]`(scene)` would draw with,
@@ -453,6 +487,7 @@ impl Renderer {
             trace: self.trace.variant_for_edit(want),
             driver: self.trace.uses_driver(),
             reproject: self.settings.temporal != Temporal::Off,
+            accumulate: self.accumulate_kernels(scene, &self.settings),
         }
     }
 
@@ -465,6 +500,7 @@ impl Renderer {
             || PipelineKeys {
                 trace: trace::Variant::of(&self.scene, &self.buffers, settings),
                 reproject: settings.temporal != Temporal::Off,
+                accumulate: self.accumulate_kernels(&self.scene, settings),
                 ..self.pipeline_keys()
             },
         )
@@ -472,13 +508,15 @@ impl Renderer {
 
     /// Draws with the pipelines of `keys` from now on (building them if
     /// needed): how a renderer made only to compile them ahead of a change
-    /// draws what the changed renderer will ([`warmup`]).
+    /// draws what the changed renderer will ([`warmup`]), at a size of its
+    /// own (the accumulate tiles stay those of `keys`).
     pub fn use_pipelines(&mut self, gpu: &Gpu, keys: &PipelineKeys) -> Result<(), GpuError> {
         if keys.driver != self.trace.uses_driver() {
             return Err(GpuError::Unsupported(
                 "these pipelines trace through another acceleration structure".into(),
             ));
         }
+        self.tile_px = Some(keys.accumulate.tile_px);
         self.raster.prepare(gpu, &self.frame, keys.raster);
         self.trace.select_variant(gpu, keys.trace)
     }
@@ -575,12 +613,7 @@ impl Renderer {
     /// The widest outline of any material, in pixels, capped at the
     /// accumulate pass's search radius.
     fn max_outline_px(&self) -> f32 {
-        self.scene
-            .materials
-            .iter()
-            .map(|m| m.outline_width_px)
-            .fold(0.0f32, f32::max)
-            .min(crate::gpu::twins::MAX_OUTLINE_RADIUS as f32)
+        max_outline_px(&self.scene)
     }
 
     /// Sample `k`'s level of detail for each of the scene's draws
@@ -728,8 +761,9 @@ impl Renderer {
             t.last_timed
         });
         // An outline under 1 px reaches no other pixel (search radius 0).
-        let outlines = self.max_outline_px() >= 1.0;
-        let tile_px = self.outline_tile_px();
+        let kernels = self.accumulate_kernels(&self.scene, &self.settings);
+        self.accumulate.note_run(kernels);
+        let (outlines, tile_px) = (kernels.outlines, kernels.tile_px);
         let mut timer = self.timer.as_mut().filter(|_| timed);
         let traced = mode != RenderMode::Raster;
         if let Some((pass, _)) = &moving {
@@ -1000,9 +1034,9 @@ impl Renderer {
     }
 
     /// The edge (pixels) of the accumulate pass's tiles for this scene's
-    /// outlines ([`accumulate::accumulate_tile_px`]).
+    /// outlines and image size ([`accumulate::accumulate_tile_px`]).
     pub fn outline_tile_px(&self) -> u32 {
-        accumulate::accumulate_tile_px(self.max_outline_px())
+        self.accumulate_kernels(&self.scene, &self.settings).tile_px
     }
 
     /// Whether the outline search runs over the list of marked tiles (one
