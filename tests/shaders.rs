@@ -938,3 +938,44 @@ fn no_stage_binds_more_than_seven_uniform_buffers() {
     }
     assert!(checked > 0, "no uniform buffer was counted");
 }
+
+/// A pass built for a scene's walks (`create_module_sized`) declares the
+/// traversal stack with the scene's length, `TRACE_STACK`, in place of the
+/// full `TRAVERSAL_STACK`, and nothing else changes: the same lines, so
+/// that errors still map to their files, and the same text outside that
+/// line. Lengths of 0 and past the full one are refused.
+#[test]
+fn a_sized_pass_declares_the_stack_its_scene_needs() {
+    use celray::gpu::shader::with_trace_stack;
+    let full = compose("trace.wgsl").unwrap();
+    let sized = with_trace_stack(&full, 5).unwrap();
+    assert_eq!(sized.lines().count(), full.lines().count());
+    let changed: Vec<(&str, &str)> = full
+        .lines()
+        .zip(sized.lines())
+        .filter(|(a, b)| a != b)
+        .collect();
+    assert_eq!(changed.len(), 1, "{changed:?}");
+    let module = naga::front::wgsl::parse_str(&sized).unwrap();
+    assert_eq!(wgsl_u32_constant(&module, "TRACE_STACK"), 5);
+    assert_eq!(
+        wgsl_u32_constant(&module, "TRAVERSAL_STACK"),
+        TRAVERSAL_STACK
+    );
+    let stack = module
+        .global_variables
+        .iter()
+        .find(|(_, g)| g.name.as_deref() == Some("trace_stack"))
+        .expect("trace_stack")
+        .1;
+    match module.types[stack.ty].inner {
+        naga::TypeInner::Array {
+            size: naga::ArraySize::Constant(n),
+            ..
+        } => assert_eq!(n.get(), 5),
+        ref other => panic!("trace_stack is {other:?}"),
+    }
+    assert_eq!(with_trace_stack(&full, TRAVERSAL_STACK).unwrap(), full);
+    assert!(with_trace_stack(&full, 0).is_err());
+    assert!(with_trace_stack(&full, TRAVERSAL_STACK + 1).is_err());
+}

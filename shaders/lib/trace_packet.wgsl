@@ -101,7 +101,7 @@ fn packet_descend(first: u32, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max:
     let any0 = subgroupAny(h0);
     let any1 = subgroupAny(h1);
     if any0 && any1 {
-        if *sp >= TRAVERSAL_STACK {
+        if *sp >= TRACE_STACK {
             overflowed = true;
             return PACKET_NONE;
         }

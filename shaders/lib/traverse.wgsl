@@ -9,7 +9,9 @@
 // a truncated image is never silent.
 
 const NO_HIT: u32 = 0xffffffffu;
-// MAX_TRAVERSAL_STEPS and TRAVERSAL_STACK: lib/limits.wgsl (generated).
+// MAX_TRAVERSAL_STEPS and TRACE_STACK: lib/limits.wgsl (generated). TRACE_STACK
+// is the stack's length in this module: TRAVERSAL_STACK, or what the
+// scene's walks need (src/gpu/shader.rs, create_module_sized).
 
 // False in pipelines for scenes without triangle meshes: the mesh traversal
 // is compiled out (the CPU driver runs a smaller kernel faster).
@@ -19,8 +21,9 @@ var<private> steps_left: u32;
 // The traversal stack: one per invocation, which its queries use in turn
 // (a mesh or CSG walk inside a top-level walk, above the top level's
 // entries). A private array in each query would be zero-filled at each of
-// its calls; this one is filled once per invocation (docs/performance-history.md).
-var<private> trace_stack: array<u32, TRAVERSAL_STACK>;
+// its calls; this one is filled once per invocation, and only as long as
+// the scene needs (docs/performance-history.md).
+var<private> trace_stack: array<u32, TRACE_STACK>;
 // The triangle (index into `triangles`) of the closest hit a trace last
 // returned, when that hit is on a triangle mesh (texture coordinates).
 var<private> hit_triangle: u32;
@@ -81,7 +84,7 @@ fn descend(node: BvhNode, o: vec3<f32>, inv_d: vec3<f32>, t_min: f32, t_max: f32
     let hit_left = t_left < 3.0e38;
     let hit_right = t_right < 3.0e38;
     if hit_left && hit_right {
-        if *sp >= TRAVERSAL_STACK {
+        if *sp >= TRACE_STACK {
             overflowed = true;
             return NO_HIT;
         }

@@ -16,7 +16,12 @@ pub const SHAPE_DISK: u32 = 5;
 pub const SHAPE_MESH: u32 = 6;
 
 /// Entries of the traversal stack, shared by both levels (the bottom level
-/// continues above the top level's entries); deeper trees are refused.
+/// continues above the top level's entries); deeper trees are refused. The
+/// trace kernel's stack is only as long as its scene needs
+/// (`SceneAccel::stack_entries`, the WGSL constant `TRACE_STACK`): lavapipe
+/// zero-fills the whole private array for every invocation, and its
+/// accesses cost more the longer it is (docs/performance-history.md,
+/// twenty-third session).
 pub const TRAVERSAL_STACK: u32 = 64;
 /// Loop iterations one ray query may take before it gives up and reports
 /// overflow: well under lavapipe's silent cut at ~65,535 per invocation.

@@ -65,6 +65,13 @@ pub struct SceneAccel {
     /// Per triangle: (shape id, the mesh vertex of its first corner), or
     /// (u32::MAX, 0) for CSG leaves: where its base-colour map comes from.
     pub triangle_sources: Vec<(u32, u32)>,
+    /// The traversal stack entries a walk of this scene may hold, at most
+    /// [`TRAVERSAL_STACK`]: the top level's depth plus the deepest bottom
+    /// level's (a mesh's, or a CSG mesh leaf's), since a walk holds one
+    /// entry per inner node on its path, and a bottom-level walk continues
+    /// above its top-level walk's entries. The trace kernels' stack is
+    /// this long (`render::trace::Variant`).
+    pub stack_entries: u32,
     pub build_ms: f64,
 }
 
@@ -269,12 +276,14 @@ impl SceneAccel {
         all.extend(blas_nodes);
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
         log::info!(
-            "BVH build: {} shapes, {} triangles, {} instances, {} nodes, top depth {}, {build_ms:.1} ms",
+            "BVH build: {} shapes, {} triangles, {} instances, {} nodes, top depth {}, \
+             stack {}, {build_ms:.1} ms",
             shapes.len(),
             triangles.len(),
             instances.len(),
             all.len(),
-            tlas.depth
+            tlas.depth,
+            tlas.depth + max_blas_depth
         );
         Ok(SceneAccel {
             shapes,
@@ -288,6 +297,7 @@ impl SceneAccel {
             csg_ops,
             triangle_sources,
             csg_leaves,
+            stack_entries: tlas.depth + max_blas_depth,
             build_ms,
         })
     }

@@ -27,6 +27,9 @@ pub fn u32_limits() -> Vec<U32Limit> {
     use crate::scene::{CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK};
     let mut limits = vec![
         ("TRAVERSAL_STACK", twins::TRAVERSAL_STACK),
+        // The stack's length in this module: [`create_module_sized`]
+        // rewrites this line.
+        ("TRACE_STACK", twins::TRAVERSAL_STACK),
         ("MAX_TRAVERSAL_STEPS", twins::MAX_TRAVERSAL_STEPS),
         ("MAX_INVOCATION_STEPS", twins::MAX_INVOCATION_STEPS),
         ("CSG_MAX_INTERVALS", CSG_MAX_INTERVALS),
@@ -442,11 +445,52 @@ pub fn create_module_variant(
     name: &str,
     traversal: Traversal,
 ) -> Result<wgpu::ShaderModule, GpuError> {
+    create_module_sized(gpu, name, traversal, twins::TRAVERSAL_STACK)
+}
+
+/// The generated header's line giving the traversal stack's length.
+fn trace_stack_line(entries: u32) -> String {
+    format!("const TRACE_STACK: u32 = {entries}u;")
+}
+
+/// `source` (a composed pass) with a traversal stack of `entries` (1 to
+/// [`twins::TRAVERSAL_STACK`]) in place of the header's full length (a
+/// pass without the header only at the full length). The line count
+/// stays, so error lines still map to their files.
+pub fn with_trace_stack(source: &str, entries: u32) -> Result<String, GpuError> {
+    if !(1..=twins::TRAVERSAL_STACK).contains(&entries) {
+        return Err(GpuError::Shader(format!(
+            "a traversal stack of {entries} entries (1 to {})",
+            twins::TRAVERSAL_STACK
+        )));
+    }
+    let full = trace_stack_line(twins::TRAVERSAL_STACK);
+    if entries == twins::TRAVERSAL_STACK {
+        return Ok(source.to_string());
+    }
+    if !source.contains(&full) {
+        return Err(GpuError::Shader(
+            "no TRACE_STACK line in the composed pass".into(),
+        ));
+    }
+    Ok(source.replacen(&full, &trace_stack_line(entries), 1))
+}
+
+/// [`create_module_variant`] with a traversal stack of `entries`
+/// ([`with_trace_stack`]): a scene's walks hold at most
+/// `SceneAccel::stack_entries`.
+pub fn create_module_sized(
+    gpu: &crate::gpu::Gpu,
+    name: &str,
+    traversal: Traversal,
+    entries: u32,
+) -> Result<wgpu::ShaderModule, GpuError> {
     let overrides = gpu.shader_overrides();
-    let source = match &overrides {
+    let composed = match &overrides {
         Some(o) => compose_with(name, o, traversal)?,
         None => compose_variant(name, traversal)?,
     };
+    let source = with_trace_stack(&composed, entries)?;
     gpu.scoped(|| {
         gpu.device
             .create_shader_module(wgpu::ShaderModuleDescriptor {

@@ -3,6 +3,7 @@
 //! ray-throughput benchmark times. Group 0 is the scene's shared group,
 //! group 1 [`PASS_LAYOUT`] (the rays and their hits).
 
+use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
@@ -10,7 +11,7 @@ use wgpu::util::DeviceExt;
 
 use crate::gpu::layout::{buffer_entries, read_only_storage_entry, read_write_storage_entry};
 use crate::gpu::shader::Traversal;
-use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP};
+use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP, TRAVERSAL_STACK};
 use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
@@ -33,7 +34,11 @@ fn software(gpu: &Gpu) -> Traversal {
 }
 
 pub struct RayBatch {
-    module: wgpu::ShaderModule,
+    traversal: Traversal,
+    /// By the traversal stack's length (`SceneAccel::stack_entries`; the
+    /// full length first, made at once so that a broken shader fails
+    /// here).
+    modules: Mutex<HashMap<u32, wgpu::ShaderModule>>,
     scene_layout: wgpu::BindGroupLayout,
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
@@ -41,9 +46,9 @@ pub struct RayBatch {
     driver: Option<wgpu::BindGroupLayout>,
     any_hit: bool,
     /// By whether the scene has CSG shapes (override `CSG_ENABLED`, as in
-    /// the trace pass) and which tables it reads from uniform copies; built
-    /// the first time a scene needs one.
-    pipelines: Mutex<HashMap<(bool, UniformTables), wgpu::ComputePipeline>>,
+    /// the trace pass), which tables it reads from uniform copies and the
+    /// stack's length; built the first time a scene needs one.
+    pipelines: Mutex<HashMap<(bool, UniformTables, u32), wgpu::ComputePipeline>>,
 }
 
 impl RayBatch {
@@ -92,7 +97,8 @@ impl RayBatch {
             let driver =
                 (traversal == Traversal::Driver).then(|| driver_accel::bind_group_layout(gpu));
             RayBatch {
-                module,
+                traversal,
+                modules: Mutex::new(HashMap::from([(TRAVERSAL_STACK, module)])),
                 scene_layout,
                 layout,
                 pipeline_layout,
@@ -104,43 +110,63 @@ impl RayBatch {
     }
 
     /// The pipeline for `scene`, built the first time.
-    fn pipeline_for(&self, gpu: &Gpu, scene: &SceneBuffers) -> wgpu::ComputePipeline {
+    fn pipeline_for(
+        &self,
+        gpu: &Gpu,
+        scene: &SceneBuffers,
+    ) -> Result<wgpu::ComputePipeline, GpuError> {
         let csg = !scene.accel.csg_ops.is_empty();
-        let key = (csg, scene.tables);
+        // Ray queries keep no stack of celray's.
+        let stack = match self.traversal {
+            Traversal::Driver => TRAVERSAL_STACK,
+            _ => scene.accel.stack_entries,
+        };
+        let key = (csg, scene.tables, stack);
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
-        pipelines
-            .entry(key)
-            .or_insert_with(|| {
-                let constants = [
-                    ("CSG_ENABLED", f64::from(u8::from(csg))),
-                    ("ANY_HIT", f64::from(u8::from(self.any_hit))),
-                    scene.tables.constant(),
-                    gpu.edge_tolerance_constant(),
-                ];
-                if let Some(driver_layout) = &self.driver {
-                    return driver_accel::pipeline(
-                        gpu,
-                        "ray batch pipeline (driver ray queries)",
-                        &self.module,
-                        &[&self.scene_layout, &self.layout],
-                        driver_layout,
-                        &constants,
-                    );
-                }
-                gpu.device
-                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                        label: Some("ray batch pipeline"),
-                        layout: Some(&self.pipeline_layout),
-                        module: &self.module,
-                        entry_point: Some("main"),
-                        compilation_options: wgpu::PipelineCompilationOptions {
-                            constants: &constants,
-                            ..Default::default()
-                        },
-                        cache: None,
-                    })
-            })
-            .clone()
+        if let Some(p) = pipelines.get(&key) {
+            return Ok(p.clone());
+        }
+        let mut modules = self.modules.lock().unwrap_or_else(|e| e.into_inner());
+        let module = match modules.entry(stack) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => e.insert(shader::create_module_sized(
+                gpu,
+                "ray_batch.wgsl",
+                self.traversal,
+                stack,
+            )?),
+        };
+        let constants = [
+            ("CSG_ENABLED", f64::from(u8::from(csg))),
+            ("ANY_HIT", f64::from(u8::from(self.any_hit))),
+            scene.tables.constant(),
+            gpu.edge_tolerance_constant(),
+        ];
+        let pipeline = match &self.driver {
+            Some(driver_layout) => driver_accel::pipeline(
+                gpu,
+                "ray batch pipeline (driver ray queries)",
+                module,
+                &[&self.scene_layout, &self.layout],
+                driver_layout,
+                &constants,
+            ),
+            None => gpu
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("ray batch pipeline"),
+                    layout: Some(&self.pipeline_layout),
+                    module,
+                    entry_point: Some("main"),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
+                    cache: None,
+                }),
+        };
+        pipelines.insert(key, pipeline.clone());
+        Ok(pipeline)
     }
 
     /// Traces `rays` against `scene`; returns one hit per ray (timed:
@@ -235,7 +261,7 @@ impl RayBatch {
             layout: &self.layout,
             entries: &entries,
         });
-        let pipeline = self.pipeline_for(gpu, scene);
+        let pipeline = self.pipeline_for(gpu, scene)?;
         let dispatch = || {
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             {

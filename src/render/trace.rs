@@ -10,6 +10,7 @@
 //! [`PASS_LAYOUT`] (frame uniforms, the overflow counter, the G-buffers);
 //! the driver variant adds the driver's structures as group 2.
 
+use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 
 use wgpu::util::DeviceExt;
@@ -56,10 +57,10 @@ pub struct TracePass {
     /// runs markedly faster.
     pipelines: HashMap<Variant, wgpu::ComputePipeline>,
     variant: Variant,
-    module: wgpu::ShaderModule,
-    /// The pass composed with `lib/trace_packet.wgsl`, made the first time a
-    /// variant with `packet` is selected.
-    packet_module: Option<wgpu::ShaderModule>,
+    /// The pass's modules, made as variants ask for them: by whether the
+    /// BVH is walked as packets (`lib/trace_packet.wgsl`), and the
+    /// traversal stack's length.
+    modules: HashMap<(bool, u32), wgpu::ShaderModule>,
     pipeline_layout: wgpu::PipelineLayout,
     scene_layout: wgpu::BindGroupLayout,
     target_layout: wgpu::BindGroupLayout,
@@ -133,6 +134,11 @@ pub struct Variant {
     /// The BVH walked as packets of 8 (`SceneBuffers::packet_trace`;
     /// `lib/trace_packet.wgsl`), else each ray on its own.
     packet: bool,
+    /// The traversal stack's length (`TRACE_STACK`): the entries the
+    /// scene's walks may hold (`SceneAccel::stack_entries`). Not an
+    /// override constant, since WGSL sizes private arrays only by
+    /// constants: each length has a module of its own.
+    stack: u32,
 }
 
 impl Variant {
@@ -165,6 +171,7 @@ impl Variant {
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
             packet: buffers.packet_trace,
+            stack: buffers.accel.stack_entries,
         }
     }
 
@@ -263,7 +270,6 @@ fn trace_pipeline(
 
 impl TracePass {
     pub fn new(gpu: &Gpu) -> Result<TracePass, GpuError> {
-        let module = shader::create_module(gpu, "trace.wgsl")?;
         gpu.scoped(|| {
             let scene_layout = scene_layout(gpu);
             let target_layout =
@@ -291,8 +297,7 @@ impl TracePass {
             TracePass {
                 pipelines: HashMap::new(),
                 variant: Variant::default(),
-                module,
-                packet_module: None,
+                modules: HashMap::new(),
                 pipeline_layout: layout,
                 scene_layout,
                 target_layout,
@@ -371,20 +376,25 @@ impl TracePass {
                 }
             }
         } else if !self.pipelines.contains_key(&variant) {
-            let module = if variant.packet {
-                if !gpu.packet_walk() {
-                    return Err(GpuError::Unsupported(format!(
-                        "a packet-walk trace variant on a device without it ({})",
-                        gpu.summary
-                    )));
-                }
-                let packet = match self.packet_module.take() {
-                    Some(m) => m,
-                    None => shader::create_module_variant(gpu, "trace.wgsl", Traversal::Packet)?,
-                };
-                &*self.packet_module.insert(packet)
+            if variant.packet && !gpu.packet_walk() {
+                return Err(GpuError::Unsupported(format!(
+                    "a packet-walk trace variant on a device without it ({})",
+                    gpu.summary
+                )));
+            }
+            let traversal = if variant.packet {
+                Traversal::Packet
             } else {
-                &self.module
+                Traversal::Software
+            };
+            let module = match self.modules.entry((variant.packet, variant.stack)) {
+                Entry::Occupied(e) => e.into_mut(),
+                Entry::Vacant(e) => e.insert(shader::create_module_sized(
+                    gpu,
+                    "trace.wgsl",
+                    traversal,
+                    variant.stack,
+                )?),
             };
             let pipeline = trace_pipeline(gpu, &self.pipeline_layout, module, variant);
             self.pipelines.insert(variant, pipeline);
