@@ -466,3 +466,40 @@ fn mesh_leaves_must_be_closed() {
         .unwrap();
     std::fs::remove_dir_all(&dir).ok();
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// The trace kernel's CSG store is sized to a scene's programs
+    /// (`PrivateSizes::of_csg`, which runs each program on interval
+    /// bounds). For random trees that load: the stack is at most the
+    /// loader's bound (`stack_need` takes the children in their written
+    /// order; the compiled program takes the neediest first, so it may
+    /// need fewer) and 2 wherever there is an operation (a binary step
+    /// holds both operands), else 1; the intervals are the tree's
+    /// worst-case count (its root's, since no operation's bound is below
+    /// its operands'); and the intervals of random rays fit them.
+    #[test]
+    fn sized_csg_store_holds_every_tree_that_loads(
+        root in tree_strategy(),
+        rays in prop::collection::vec((prop::array::uniform3(-4.0f32..4.0), prop::array::uniform3(-1.0f32..1.0)), 4),
+    ) {
+        let csg = Csg { root: Box::new(root) };
+        if csg.check().is_err() {
+            return Ok(());
+        }
+        let program = CompiledCsg::new(&csg).unwrap();
+        let sizes = celray::accel::PrivateSizes::of_csg(&program.ops, &program.leaves);
+        prop_assert!(sizes.csg_stack <= csg.root.stack_need());
+        let operations = program.ops.iter().filter(|o| o.op > 1).count();
+        let least = if operations > 0 { 2 } else { 1 };
+        prop_assert!(sizes.csg_stack >= least, "{} < {}", sizes.csg_stack, least);
+        prop_assert_eq!(sizes.csg_intervals, csg.root.interval_bound());
+        for (origin, aim) in rays {
+            let o = Vec3::from(origin);
+            let Some(d) = (Vec3::from(aim) - o).try_normalize() else { continue };
+            let list = program.intervals(o, d).unwrap();
+            prop_assert!(list.len() as u32 <= 2 * sizes.csg_intervals);
+        }
+    }
+}

@@ -939,43 +939,95 @@ fn no_stage_binds_more_than_seven_uniform_buffers() {
     assert!(checked > 0, "no uniform buffer was counted");
 }
 
-/// A pass built for a scene's walks (`create_module_sized`) declares the
-/// traversal stack with the scene's length, `TRACE_STACK`, in place of the
-/// full `TRAVERSAL_STACK`, and nothing else changes: the same lines, so
-/// that errors still map to their files, and the same text outside that
-/// line. Lengths of 0 and past the full one are refused.
+/// A pass built for a scene (`create_module_sized`) declares its private
+/// arrays with the scene's lengths: the traversal stack `TRACE_STACK`
+/// entries long in place of the full `TRAVERSAL_STACK`, the CSG store
+/// (`CSG_EVAL_STACK` + 1 entries of 2 `CSG_EVAL_INTERVALS` endpoints) in
+/// place of `CSG_STACK` and `CSG_MAX_INTERVALS`; nothing else changes:
+/// the same lines, so that errors still map to their files, and the same
+/// text outside those three. Lengths of 0 and past the full ones are
+/// refused.
 #[test]
-fn a_sized_pass_declares_the_stack_its_scene_needs() {
-    use celray::gpu::shader::with_trace_stack;
+fn a_sized_pass_declares_the_arrays_its_scene_needs() {
+    use celray::accel::PrivateSizes;
+    use celray::gpu::shader::with_sizes;
     let full = compose("trace.wgsl").unwrap();
-    let sized = with_trace_stack(&full, 5).unwrap();
+    let sizes = PrivateSizes {
+        trace_stack: 5,
+        csg_stack: 2,
+        csg_intervals: 3,
+    };
+    let sized = with_sizes(&full, sizes).unwrap();
     assert_eq!(sized.lines().count(), full.lines().count());
-    let changed: Vec<(&str, &str)> = full
+    let changed = full
         .lines()
         .zip(sized.lines())
         .filter(|(a, b)| a != b)
-        .collect();
-    assert_eq!(changed.len(), 1, "{changed:?}");
+        .count();
+    assert_eq!(changed, 3);
     let module = naga::front::wgsl::parse_str(&sized).unwrap();
     assert_eq!(wgsl_u32_constant(&module, "TRACE_STACK"), 5);
     assert_eq!(
         wgsl_u32_constant(&module, "TRAVERSAL_STACK"),
         TRAVERSAL_STACK
     );
-    let stack = module
-        .global_variables
-        .iter()
-        .find(|(_, g)| g.name.as_deref() == Some("trace_stack"))
-        .expect("trace_stack")
-        .1;
-    match module.types[stack.ty].inner {
-        naga::TypeInner::Array {
-            size: naga::ArraySize::Constant(n),
-            ..
-        } => assert_eq!(n.get(), 5),
-        ref other => panic!("trace_stack is {other:?}"),
+    // The length of the array type of global `var`, or of its member.
+    let length = |var: &str, member: Option<&str>| {
+        let global = module
+            .global_variables
+            .iter()
+            .find(|(_, g)| g.name.as_deref() == Some(var))
+            .unwrap_or_else(|| panic!("no {var}"))
+            .1;
+        let mut ty = global.ty;
+        if let Some(m) = member {
+            match &module.types[ty].inner {
+                naga::TypeInner::Struct { members, .. } => {
+                    ty = members
+                        .iter()
+                        .find(|x| x.name.as_deref() == Some(m))
+                        .unwrap()
+                        .ty
+                }
+                other => panic!("{var} is {other:?}"),
+            }
+        }
+        match module.types[ty].inner {
+            naga::TypeInner::Array {
+                size: naga::ArraySize::Constant(n),
+                ..
+            } => n.get(),
+            ref other => panic!("{var} is {other:?}"),
+        }
+    };
+    assert_eq!(length("trace_stack", None), 5);
+    // 3 slots (2 entries and the scratch one) of 6 endpoints.
+    assert_eq!(length("csg_store", Some("t")), 18);
+    assert_eq!(length("csg_store", Some("len")), 3);
+    assert_eq!(with_sizes(&full, PrivateSizes::FULL).unwrap(), full);
+    let full_module = parse("trace.wgsl");
+    assert_eq!(
+        wgsl_u32_constant(&full_module, "CSG_STORE_ENDPOINTS"),
+        (CSG_STACK + 1) * 2 * CSG_MAX_INTERVALS
+    );
+    for bad in [
+        PrivateSizes {
+            trace_stack: 0,
+            ..sizes
+        },
+        PrivateSizes {
+            trace_stack: TRAVERSAL_STACK + 1,
+            ..sizes
+        },
+        PrivateSizes {
+            csg_stack: CSG_STACK + 1,
+            ..sizes
+        },
+        PrivateSizes {
+            csg_intervals: 0,
+            ..sizes
+        },
+    ] {
+        assert!(with_sizes(&full, bad).is_err(), "{bad:?}");
     }
-    assert_eq!(with_trace_stack(&full, TRAVERSAL_STACK).unwrap(), full);
-    assert!(with_trace_stack(&full, 0).is_err());
-    assert!(with_trace_stack(&full, TRAVERSAL_STACK + 1).is_err());
 }

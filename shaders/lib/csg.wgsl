@@ -7,10 +7,12 @@
 // with the outward normal of the partial solid (CSG object space, not unit)
 // and the leaf's material. The first endpoint in (t_min, t_max) is the hit.
 //
-// Fixed storage: CSG_STACK entries of 2 * CSG_MAX_INTERVALS endpoints, plus
-// one scratch entry, 12 bytes an endpoint (t, packed normal, material and
-// flip bit): ~1 KB per invocation (on CPU drivers a private array costs in
-// proportion to its size, zeroed where it is declared). Trees that could
+// Fixed storage: CSG_EVAL_STACK entries of 2 * CSG_EVAL_INTERVALS
+// endpoints, plus one scratch entry, 12 bytes an endpoint (t, packed
+// normal, material and flip bit): ~1 KB per invocation at the full lengths
+// (on CPU drivers a private array costs in proportion to its size, zeroed
+// where it is declared, so each scene's kernel has only the lengths its
+// programs need). Trees that could
 // need more are refused at load (see
 // src/scene/csg.rs); a mesh leaf crossed more than CSG_MESH_MAX_CROSSINGS
 // times, or a list that overflows anyway, sets `overflowed` (a magenta
@@ -40,10 +42,16 @@ const CSG_OP_UNION: u32 = 2u;
 const CSG_OP_INTERSECTION: u32 = 3u;
 const CSG_OP_DIFFERENCE: u32 = 4u;
 const CSG_NO_MATERIAL: u32 = 0xffffffffu;
-// CSG_MAX_INTERVALS, CSG_STACK, CSG_MESH_MAX_CROSSINGS, CSG_ENDPOINTS
-// (2 * CSG_MAX_INTERVALS endpoints per entry), CSG_SLOTS (CSG_STACK + 1
-// entries), CSG_STORE_ENDPOINTS (their product), CSG_FAR, CSG_EPS_ABS and
-// CSG_EPS_REL come from the generated lib/limits.wgsl (src/gpu/shader.rs).
+// CSG_MESH_MAX_CROSSINGS, CSG_FAR, CSG_EPS_ABS, CSG_EPS_REL and the
+// evaluator's lengths in this module, CSG_EVAL_STACK stack entries of
+// CSG_EVAL_INTERVALS intervals (CSG_STACK and CSG_MAX_INTERVALS, or what
+// the scene's programs need: src/accel/mod.rs, PrivateSizes), come from
+// the generated lib/limits.wgsl (src/gpu/shader.rs).
+// Endpoints per stack entry.
+const CSG_ENDPOINTS: u32 = 2u * CSG_EVAL_INTERVALS;
+// The stack's entries and one scratch entry.
+const CSG_SLOTS: u32 = CSG_EVAL_STACK + 1u;
+const CSG_STORE_ENDPOINTS: u32 = CSG_SLOTS * CSG_ENDPOINTS;
 
 // Endpoint storage: entry s of the stack lives in physical slot
 // slot[s]; endpoint k of slot p is at p * CSG_ENDPOINTS + k (CSG_STORE_ENDPOINTS = CSG_SLOTS * CSG_ENDPOINTS).
@@ -304,7 +312,7 @@ fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
             break;
         }
         if op.op == CSG_OP_LEAF {
-            if sp >= CSG_STACK {
+            if sp >= CSG_EVAL_STACK {
                 overflowed = true;
                 return no_hit();
             }

@@ -18,7 +18,7 @@ pub const SHAPE_MESH: u32 = 6;
 /// Entries of the traversal stack, shared by both levels (the bottom level
 /// continues above the top level's entries); deeper trees are refused. The
 /// trace kernel's stack is only as long as its scene needs
-/// (`SceneAccel::stack_entries`, the WGSL constant `TRACE_STACK`): lavapipe
+/// (`PrivateSizes::trace_stack`, the WGSL constant `TRACE_STACK`): lavapipe
 /// zero-fills the whole private array for every invocation, and its
 /// accesses cost more the longer it is (docs/performance-history.md,
 /// twenty-third session).

@@ -18,12 +18,14 @@ use std::ops::ControlFlow;
 
 use glam::{Mat4, Vec3};
 
-use crate::scene::{Mesh, PlaneKind, Scene, Shape};
+use crate::scene::{
+    Mesh, PlaneKind, Scene, Shape, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK,
+};
 use bvh::Aabb;
 use layout::{
-    BvhNode, GpuCsgLeaf, GpuCsgOp, GpuShape, GpuTriangle, CSG_NO_MATERIAL, MAX_TRAVERSAL_STEPS,
-    SHAPE_BOX, SHAPE_CONE, SHAPE_CSG, SHAPE_CYLINDER, SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD,
-    SHAPE_SPHERE, TRAVERSAL_STACK,
+    BvhNode, GpuCsgLeaf, GpuCsgOp, GpuShape, GpuTriangle, CSG_NO_MATERIAL, CSG_OP_END,
+    CSG_OP_INTERSECTION, CSG_OP_LEAF, MAX_TRAVERSAL_STEPS, SHAPE_BOX, SHAPE_CONE, SHAPE_CSG,
+    SHAPE_CYLINDER, SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE, TRAVERSAL_STACK,
 };
 
 /// Triangles per bottom-level leaf and instances per top-level leaf.
@@ -40,6 +42,79 @@ pub enum AccelError {
         depth: u32,
         limit: u32,
     },
+}
+
+/// How long the kernels' private arrays must be for a scene, each at most
+/// its full length ([`PrivateSizes::FULL`], the limits scenes are checked
+/// against at load). lavapipe zero-fills a private array at each
+/// invocation's start and indexes it the slower the longer it is, so the
+/// trace kernels are built with these lengths (`gpu::shader::
+/// create_module_sized`); no walk or CSG evaluation of the scene can
+/// reach their ends, so the images are those of the full lengths.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct PrivateSizes {
+    /// Traversal stack entries (`TRACE_STACK`): the top level's depth plus
+    /// the deepest bottom level's (a mesh's, or a CSG mesh leaf's), since
+    /// a walk holds at most one entry per inner node on its path, and a
+    /// bottom-level walk continues above its top-level walk's entries.
+    pub trace_stack: u32,
+    /// CSG evaluator stack entries (`CSG_EVAL_STACK`): the most any of the
+    /// scene's CSG programs pushes.
+    pub csg_stack: u32,
+    /// Intervals a CSG stack entry holds (`CSG_EVAL_INTERVALS`): the most
+    /// any entry of the scene's programs can hold for any ray, by the
+    /// bounds `scene::csg` checks trees against.
+    pub csg_intervals: u32,
+}
+
+impl Default for PrivateSizes {
+    fn default() -> Self {
+        PrivateSizes::FULL
+    }
+}
+
+impl PrivateSizes {
+    /// The full lengths: what any scene that loads fits.
+    pub const FULL: PrivateSizes = PrivateSizes {
+        trace_stack: TRAVERSAL_STACK,
+        csg_stack: CSG_STACK,
+        csg_intervals: CSG_MAX_INTERVALS,
+    };
+
+    /// The CSG sizes of the programs in `ops` (each ending with
+    /// `CSG_OP_END`) over `leaves`, by running them on bounds: a leaf
+    /// pushes 1 interval (CSG_MESH_MAX_CROSSINGS / 2 for a mesh leaf),
+    /// a union the sum of its operands', an intersection the sum less 1,
+    /// a difference the sum. At least 1 each (a scene without CSG), at
+    /// most the full lengths; the trace stack is left full.
+    pub fn of_csg(ops: &[GpuCsgOp], leaves: &[GpuCsgLeaf]) -> PrivateSizes {
+        let (mut stack, mut most_stack, mut most_intervals) = (Vec::new(), 1, 1);
+        for op in ops {
+            match op.op {
+                CSG_OP_END => stack.clear(),
+                CSG_OP_LEAF => {
+                    let mesh = leaves[op.arg as usize].kind == SHAPE_MESH;
+                    stack.push(if mesh { CSG_MESH_MAX_CROSSINGS / 2 } else { 1 });
+                }
+                set => {
+                    let (b, a) = (stack.pop().unwrap_or(1), stack.pop().unwrap_or(1));
+                    let sum = a + b;
+                    stack.push(if set == CSG_OP_INTERSECTION {
+                        (sum - 1).max(1)
+                    } else {
+                        sum
+                    });
+                }
+            }
+            most_stack = most_stack.max(stack.len() as u32);
+            most_intervals = most_intervals.max(stack.last().copied().unwrap_or(1));
+        }
+        PrivateSizes {
+            trace_stack: TRAVERSAL_STACK,
+            csg_stack: most_stack.min(CSG_STACK),
+            csg_intervals: most_intervals.min(CSG_MAX_INTERVALS),
+        }
+    }
 }
 
 /// Everything the trace pass reads, as flat arrays.
@@ -65,13 +140,9 @@ pub struct SceneAccel {
     /// Per triangle: (shape id, the mesh vertex of its first corner), or
     /// (u32::MAX, 0) for CSG leaves: where its base-colour map comes from.
     pub triangle_sources: Vec<(u32, u32)>,
-    /// The traversal stack entries a walk of this scene may hold, at most
-    /// [`TRAVERSAL_STACK`]: the top level's depth plus the deepest bottom
-    /// level's (a mesh's, or a CSG mesh leaf's), since a walk holds one
-    /// entry per inner node on its path, and a bottom-level walk continues
-    /// above its top-level walk's entries. The trace kernels' stack is
-    /// this long (`render::trace::Variant`).
-    pub stack_entries: u32,
+    /// The lengths of the private arrays the trace kernels need for this
+    /// scene ([`PrivateSizes::of`]).
+    pub sizes: PrivateSizes,
     pub build_ms: f64,
 }
 
@@ -275,15 +346,18 @@ impl SceneAccel {
         let mut all = tlas.nodes;
         all.extend(blas_nodes);
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
+        let sizes = PrivateSizes {
+            trace_stack: tlas.depth + max_blas_depth,
+            ..PrivateSizes::of_csg(&csg_ops, &csg_leaves)
+        };
         log::info!(
             "BVH build: {} shapes, {} triangles, {} instances, {} nodes, top depth {}, \
-             stack {}, {build_ms:.1} ms",
+             {sizes:?}, {build_ms:.1} ms",
             shapes.len(),
             triangles.len(),
             instances.len(),
             all.len(),
             tlas.depth,
-            tlas.depth + max_blas_depth
         );
         Ok(SceneAccel {
             shapes,
@@ -297,7 +371,7 @@ impl SceneAccel {
             csg_ops,
             triangle_sources,
             csg_leaves,
-            stack_entries: tlas.depth + max_blas_depth,
+            sizes,
             build_ms,
         })
     }

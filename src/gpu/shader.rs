@@ -9,6 +9,7 @@
 
 use std::sync::OnceLock;
 
+use crate::accel::PrivateSizes;
 use crate::gpu::twins;
 use crate::gpu::uniform_tables::{Table, TOP_NODES_BIT, TOP_NODES_NAME};
 use crate::gpu::GpuError;
@@ -27,20 +28,17 @@ pub fn u32_limits() -> Vec<U32Limit> {
     use crate::scene::{CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK};
     let mut limits = vec![
         ("TRAVERSAL_STACK", twins::TRAVERSAL_STACK),
-        // The stack's length in this module: [`create_module_sized`]
-        // rewrites this line.
+        // The traversal stack's length in this module:
+        // [`create_module_sized`] rewrites this line.
         ("TRACE_STACK", twins::TRAVERSAL_STACK),
         ("MAX_TRAVERSAL_STEPS", twins::MAX_TRAVERSAL_STEPS),
         ("MAX_INVOCATION_STEPS", twins::MAX_INVOCATION_STEPS),
         ("CSG_MAX_INTERVALS", CSG_MAX_INTERVALS),
         ("CSG_STACK", CSG_STACK),
         ("CSG_MESH_MAX_CROSSINGS", CSG_MESH_MAX_CROSSINGS),
-        ("CSG_ENDPOINTS", 2 * CSG_MAX_INTERVALS),
-        ("CSG_SLOTS", CSG_STACK + 1),
-        (
-            "CSG_STORE_ENDPOINTS",
-            (CSG_STACK + 1) * 2 * CSG_MAX_INTERVALS,
-        ),
+        // The CSG evaluator's lengths in this module, the same way.
+        ("CSG_EVAL_STACK", CSG_STACK),
+        ("CSG_EVAL_INTERVALS", CSG_MAX_INTERVALS),
         ("MAX_TOON_BANDS", crate::scene::MAX_TOON_BANDS),
         ("MAX_OUTLINE_RADIUS", twins::MAX_OUTLINE_RADIUS),
         (
@@ -445,52 +443,67 @@ pub fn create_module_variant(
     name: &str,
     traversal: Traversal,
 ) -> Result<wgpu::ShaderModule, GpuError> {
-    create_module_sized(gpu, name, traversal, twins::TRAVERSAL_STACK)
+    create_module_sized(gpu, name, traversal, PrivateSizes::FULL)
 }
 
-/// The generated header's line giving the traversal stack's length.
-fn trace_stack_line(entries: u32) -> String {
-    format!("const TRACE_STACK: u32 = {entries}u;")
+/// The generated header's lines giving the private arrays' lengths.
+fn size_lines(sizes: PrivateSizes) -> [String; 3] {
+    [
+        ("TRACE_STACK", sizes.trace_stack),
+        ("CSG_EVAL_STACK", sizes.csg_stack),
+        ("CSG_EVAL_INTERVALS", sizes.csg_intervals),
+    ]
+    .map(|(name, n)| format!("const {name}: u32 = {n}u;"))
 }
 
-/// `source` (a composed pass) with a traversal stack of `entries` (1 to
-/// [`twins::TRAVERSAL_STACK`]) in place of the header's full length (a
-/// pass without the header only at the full length). The line count
-/// stays, so error lines still map to their files.
-pub fn with_trace_stack(source: &str, entries: u32) -> Result<String, GpuError> {
-    if !(1..=twins::TRAVERSAL_STACK).contains(&entries) {
-        return Err(GpuError::Shader(format!(
-            "a traversal stack of {entries} entries (1 to {})",
-            twins::TRAVERSAL_STACK
-        )));
+/// `source` (a composed pass) with its private arrays of `sizes` (each 1
+/// to its full length) in place of the header's full lengths (a pass
+/// without the header only at the full lengths). The line count stays, so
+/// error lines still map to their files.
+pub fn with_sizes(source: &str, sizes: PrivateSizes) -> Result<String, GpuError> {
+    let full = PrivateSizes::FULL;
+    for (n, most, what) in [
+        (
+            sizes.trace_stack,
+            full.trace_stack,
+            "traversal stack entries",
+        ),
+        (sizes.csg_stack, full.csg_stack, "CSG stack entries"),
+        (sizes.csg_intervals, full.csg_intervals, "CSG intervals"),
+    ] {
+        if !(1..=most).contains(&n) {
+            return Err(GpuError::Shader(format!("{n} {what} (1 to {most})")));
+        }
     }
-    let full = trace_stack_line(twins::TRAVERSAL_STACK);
-    if entries == twins::TRAVERSAL_STACK {
+    if sizes == full {
         return Ok(source.to_string());
     }
-    if !source.contains(&full) {
-        return Err(GpuError::Shader(
-            "no TRACE_STACK line in the composed pass".into(),
-        ));
+    let mut out = source.to_string();
+    for (from, to) in size_lines(full).iter().zip(size_lines(sizes)) {
+        if !out.contains(from.as_str()) {
+            return Err(GpuError::Shader(format!(
+                "no line {from:?} in the composed pass"
+            )));
+        }
+        out = out.replacen(from.as_str(), &to, 1);
     }
-    Ok(source.replacen(&full, &trace_stack_line(entries), 1))
+    Ok(out)
 }
 
-/// [`create_module_variant`] with a traversal stack of `entries`
-/// ([`with_trace_stack`]): a scene's walks hold at most
-/// `SceneAccel::stack_entries`.
+/// [`create_module_variant`] with private arrays of `sizes`
+/// ([`with_sizes`]; a scene's are `SceneAccel::sizes`).
 pub fn create_module_sized(
     gpu: &crate::gpu::Gpu,
     name: &str,
     traversal: Traversal,
-    entries: u32,
+    sizes: PrivateSizes,
 ) -> Result<wgpu::ShaderModule, GpuError> {
     let overrides = gpu.shader_overrides();
     let composed = match &overrides {
         Some(o) => compose_with(name, o, traversal)?,
         None => compose_variant(name, traversal)?,
     };
-    let source = with_trace_stack(&composed, entries)?;
+    let source = with_sizes(&composed, sizes)?;
     gpu.scoped(|| {
         gpu.device
             .create_shader_module(wgpu::ShaderModuleDescriptor {

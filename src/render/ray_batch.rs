@@ -9,9 +9,10 @@ use std::sync::Mutex;
 
 use wgpu::util::DeviceExt;
 
+use crate::accel::PrivateSizes;
 use crate::gpu::layout::{buffer_entries, read_only_storage_entry, read_write_storage_entry};
 use crate::gpu::shader::Traversal;
-use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP, TRAVERSAL_STACK};
+use crate::gpu::twins::{GpuHit, GpuRay, RAY_BATCH_WORKGROUP};
 use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
@@ -35,10 +36,9 @@ fn software(gpu: &Gpu) -> Traversal {
 
 pub struct RayBatch {
     traversal: Traversal,
-    /// By the traversal stack's length (`SceneAccel::stack_entries`; the
-    /// full length first, made at once so that a broken shader fails
-    /// here).
-    modules: Mutex<HashMap<u32, wgpu::ShaderModule>>,
+    /// By the private arrays' lengths (`SceneAccel::sizes`; the full
+    /// lengths first, made at once so that a broken shader fails here).
+    modules: Mutex<HashMap<PrivateSizes, wgpu::ShaderModule>>,
     scene_layout: wgpu::BindGroupLayout,
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
@@ -47,8 +47,8 @@ pub struct RayBatch {
     any_hit: bool,
     /// By whether the scene has CSG shapes (override `CSG_ENABLED`, as in
     /// the trace pass), which tables it reads from uniform copies and the
-    /// stack's length; built the first time a scene needs one.
-    pipelines: Mutex<HashMap<(bool, UniformTables, u32), wgpu::ComputePipeline>>,
+    /// private arrays' lengths; built the first time a scene needs one.
+    pipelines: Mutex<HashMap<(bool, UniformTables, PrivateSizes), wgpu::ComputePipeline>>,
 }
 
 impl RayBatch {
@@ -98,7 +98,7 @@ impl RayBatch {
                 (traversal == Traversal::Driver).then(|| driver_accel::bind_group_layout(gpu));
             RayBatch {
                 traversal,
-                modules: Mutex::new(HashMap::from([(TRAVERSAL_STACK, module)])),
+                modules: Mutex::new(HashMap::from([(PrivateSizes::FULL, module)])),
                 scene_layout,
                 layout,
                 pipeline_layout,
@@ -117,23 +117,23 @@ impl RayBatch {
     ) -> Result<wgpu::ComputePipeline, GpuError> {
         let csg = !scene.accel.csg_ops.is_empty();
         // Ray queries keep no stack of celray's.
-        let stack = match self.traversal {
-            Traversal::Driver => TRAVERSAL_STACK,
-            _ => scene.accel.stack_entries,
+        let sizes = match self.traversal {
+            Traversal::Driver => PrivateSizes::FULL,
+            _ => scene.accel.sizes,
         };
-        let key = (csg, scene.tables, stack);
+        let key = (csg, scene.tables, sizes);
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(p) = pipelines.get(&key) {
             return Ok(p.clone());
         }
         let mut modules = self.modules.lock().unwrap_or_else(|e| e.into_inner());
-        let module = match modules.entry(stack) {
+        let module = match modules.entry(sizes) {
             Entry::Occupied(e) => e.into_mut(),
             Entry::Vacant(e) => e.insert(shader::create_module_sized(
                 gpu,
                 "ray_batch.wgsl",
                 self.traversal,
-                stack,
+                sizes,
             )?),
         };
         let constants = [

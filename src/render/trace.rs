@@ -15,7 +15,7 @@ use std::collections::HashMap;
 
 use wgpu::util::DeviceExt;
 
-use crate::accel::shadow_cull;
+use crate::accel::{shadow_cull, PrivateSizes};
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
@@ -59,8 +59,8 @@ pub struct TracePass {
     variant: Variant,
     /// The pass's modules, made as variants ask for them: by whether the
     /// BVH is walked as packets (`lib/trace_packet.wgsl`), and the
-    /// traversal stack's length.
-    modules: HashMap<(bool, u32), wgpu::ShaderModule>,
+    /// private arrays' lengths.
+    modules: HashMap<(bool, PrivateSizes), wgpu::ShaderModule>,
     pipeline_layout: wgpu::PipelineLayout,
     scene_layout: wgpu::BindGroupLayout,
     target_layout: wgpu::BindGroupLayout,
@@ -134,11 +134,11 @@ pub struct Variant {
     /// The BVH walked as packets of 8 (`SceneBuffers::packet_trace`;
     /// `lib/trace_packet.wgsl`), else each ray on its own.
     packet: bool,
-    /// The traversal stack's length (`TRACE_STACK`): the entries the
-    /// scene's walks may hold (`SceneAccel::stack_entries`). Not an
-    /// override constant, since WGSL sizes private arrays only by
-    /// constants: each length has a module of its own.
-    stack: u32,
+    /// The lengths of the private arrays (`SceneAccel::sizes`: the
+    /// traversal stack, the CSG evaluator's). Not override constants,
+    /// since WGSL sizes private arrays only by constants: each set of
+    /// lengths has a module of its own.
+    sizes: PrivateSizes,
 }
 
 impl Variant {
@@ -171,7 +171,7 @@ impl Variant {
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
             packet: buffers.packet_trace,
-            stack: buffers.accel.stack_entries,
+            sizes: buffers.accel.sizes,
         }
     }
 
@@ -387,13 +387,13 @@ impl TracePass {
             } else {
                 Traversal::Software
             };
-            let module = match self.modules.entry((variant.packet, variant.stack)) {
+            let module = match self.modules.entry((variant.packet, variant.sizes)) {
                 Entry::Occupied(e) => e.into_mut(),
                 Entry::Vacant(e) => e.insert(shader::create_module_sized(
                     gpu,
                     "trace.wgsl",
                     traversal,
-                    variant.stack,
+                    variant.sizes,
                 )?),
             };
             let pipeline = trace_pipeline(gpu, &self.pipeline_layout, module, variant);
