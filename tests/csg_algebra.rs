@@ -49,6 +49,39 @@ fn tree_strategy() -> impl Strategy<Value = CsgNode> {
     })
 }
 
+/// Four rays, each from a point in [-4, 4]^3 towards one in [-1, 1]^3.
+fn rays_strategy() -> impl Strategy<Value = Vec<([f32; 3], [f32; 3])>> {
+    prop::collection::vec(
+        (
+            prop::array::uniform3(-4.0f32..4.0),
+            prop::array::uniform3(-1.0f32..1.0),
+        ),
+        4,
+    )
+}
+
+/// The rays' origins and unit directions (a ray whose two points coincide
+/// is left out).
+fn lines(rays: Vec<([f32; 3], [f32; 3])>) -> Vec<(Vec3, Vec3)> {
+    rays.into_iter()
+        .filter_map(|(origin, aim)| {
+            let o = Vec3::from(origin);
+            (Vec3::from(aim) - o).try_normalize().map(|d| (o, d))
+        })
+        .collect()
+}
+
+/// The tree and its program, where the tree loads (a tree over the
+/// interval or stack bound is refused at load, never evaluated).
+fn loadable(root: CsgNode) -> Option<(Csg, CompiledCsg)> {
+    let csg = Csg {
+        root: Box::new(root),
+    };
+    csg.check().ok()?;
+    let program = CompiledCsg::new(&csg).unwrap();
+    Some((csg, program))
+}
+
 fn inside(list: &[Endpoint], t: f32) -> bool {
     list.iter().filter(|e| e.t < t).count() % 2 == 1
 }
@@ -65,17 +98,10 @@ proptest! {
     #[test]
     fn intervals_agree_with_point_membership(
         root in tree_strategy(),
-        rays in prop::collection::vec((prop::array::uniform3(-4.0f32..4.0), prop::array::uniform3(-1.0f32..1.0)), 4),
+        rays in rays_strategy(),
     ) {
-        let csg = Csg { root: Box::new(root) };
-        if csg.check().is_err() {
-            // Over the interval or stack bound: refused at load, not evaluated.
-            return Ok(());
-        }
-        let program = CompiledCsg::new(&csg).unwrap();
-        for (origin, aim) in rays {
-            let o = Vec3::from(origin);
-            let Some(d) = (Vec3::from(aim) - o).try_normalize() else { continue };
+        let Some((csg, program)) = loadable(root) else { return Ok(()) };
+        for (o, d) in lines(rays) {
             let list = program.intervals(o, d).unwrap();
             prop_assert!(list.len().is_multiple_of(2), "odd endpoint count {}", list.len());
             for w in list.windows(2) {
@@ -125,7 +151,7 @@ proptest! {
     #[test]
     fn bounding_sphere_holds_the_solid(
         root in tree_strategy(),
-        rays in prop::collection::vec((prop::array::uniform3(-4.0f32..4.0), prop::array::uniform3(-1.0f32..1.0)), 4),
+        rays in rays_strategy(),
         aside in prop::collection::vec(prop::array::uniform3(-1.0f32..1.0), 4),
     ) {
         let csg = Csg { root: Box::new(root) };
@@ -482,22 +508,16 @@ proptest! {
     #[test]
     fn sized_csg_store_holds_every_tree_that_loads(
         root in tree_strategy(),
-        rays in prop::collection::vec((prop::array::uniform3(-4.0f32..4.0), prop::array::uniform3(-1.0f32..1.0)), 4),
+        rays in rays_strategy(),
     ) {
-        let csg = Csg { root: Box::new(root) };
-        if csg.check().is_err() {
-            return Ok(());
-        }
-        let program = CompiledCsg::new(&csg).unwrap();
+        let Some((csg, program)) = loadable(root) else { return Ok(()) };
         let sizes = celray::accel::PrivateSizes::of_csg(&program.ops, &program.leaves);
         prop_assert!(sizes.csg_stack <= csg.root.stack_need());
         let operations = program.ops.iter().filter(|o| o.op > 1).count();
         let least = if operations > 0 { 2 } else { 1 };
         prop_assert!(sizes.csg_stack >= least, "{} < {}", sizes.csg_stack, least);
         prop_assert_eq!(sizes.csg_intervals, csg.root.interval_bound());
-        for (origin, aim) in rays {
-            let o = Vec3::from(origin);
-            let Some(d) = (Vec3::from(aim) - o).try_normalize() else { continue };
+        for (o, d) in lines(rays) {
             let list = program.intervals(o, d).unwrap();
             prop_assert!(list.len() as u32 <= 2 * sizes.csg_intervals);
         }
