@@ -37,7 +37,7 @@
 // else the dispatch is every tile's workgroup, and the unmarked ones stop at
 // once (images with more tiles than one dispatch's x may count: over
 // about 4096 x 4096 pixels, since 8 px tiles are used only where they can
-// be listed; src/render/accumulate.rs).
+// be listed; or where tests turn the list off: src/render/accumulate.rs).
 @group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, 4>;
 const OUTLINE_TILES_LISTED: u32 = 1u;
 

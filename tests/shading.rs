@@ -1025,3 +1025,24 @@ fn main(@builtin(global_invocation_id) g: vec3<u32>) {
         }
     }
 }
+
+/// A warm-up renders a 16 x 16 image of the view's scene; where no keys
+/// say which accumulate tiles the view will use, it takes those of the
+/// view's own size (`Renderer::use_tiles_of_size`): with 3 px outlines,
+/// 16 px tiles for 3840 x 2160 (129,600 tiles of 8 px, past one
+/// dispatch's 65,535), 8 px for 1280 x 720. A sample drawn with the
+/// larger tiles over a 16 x 16 image marks one tile.
+#[test]
+fn a_small_warm_up_draws_with_a_large_views_tiles() {
+    let gpu = gpu();
+    let scene = scene(&outlined_sphere(16, 16, 3.0));
+    let settings = pixel_centre_settings(&scene);
+    let mut r = celray::render::Renderer::new(&gpu, scene, settings).unwrap();
+    assert_eq!(r.outline_tile_px(), 8, "its own size");
+    r.use_tiles_of_size(3840, 2160);
+    assert_eq!(r.outline_tile_px(), 16, "a 4K view's");
+    r.render_sample(&gpu).unwrap();
+    assert_eq!(r.read_outline_tile_marks(&gpu).unwrap().len(), 1);
+    r.use_tiles_of_size(1280, 720);
+    assert_eq!(r.outline_tile_px(), 8, "a 720p view's");
+}

@@ -141,7 +141,8 @@ pub struct SceneAccel {
     /// (u32::MAX, 0) for CSG leaves: where its base-colour map comes from.
     pub triangle_sources: Vec<(u32, u32)>,
     /// The lengths of the private arrays the trace kernels need for this
-    /// scene ([`PrivateSizes::of`]).
+    /// scene ([`PrivateSizes`]: the trace stack from the depths this build
+    /// measures, the CSG lengths by [`PrivateSizes::of_csg`]).
     pub sizes: PrivateSizes,
     pub build_ms: f64,
 }

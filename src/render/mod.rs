@@ -178,8 +178,9 @@ pub struct Renderer {
     driver: Option<DriverAccel>,
     /// Why the driver path was asked for but not taken (one line).
     accel_notice: Option<String>,
-    /// The accumulate tile edge [`Renderer::use_pipelines`] was given, in
-    /// place of the one the image's size and outlines choose.
+    /// The accumulate tile edge [`Renderer::use_pipelines`] or
+    /// [`Renderer::use_tiles_of_size`] set, in place of the one the image's
+    /// size and outlines choose.
     tile_px: Option<u32>,
 }
 
@@ -504,6 +505,15 @@ impl Renderer {
                 ..self.pipeline_keys()
             },
         )
+    }
+
+    /// Draws with the accumulate tiles a `width` x `height` image of this
+    /// scene takes ([`accumulate::accumulate_tile_px`]), whatever its own
+    /// size: how a warm-up at a small size compiles a large view's tiles
+    /// where no pipeline keys say which ([`warmup`]).
+    pub fn use_tiles_of_size(&mut self, width: u32, height: u32) {
+        let widest = max_outline_px(&self.scene);
+        self.tile_px = Some(self.accumulate.tile_px(widest, width, height));
     }
 
     /// Draws with the pipelines of `keys` from now on (building them if

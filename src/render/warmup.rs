@@ -38,6 +38,9 @@ struct Job {
     /// Report the job finished after its still frame
     /// ([`Warmer::request_first_image`]).
     report_still: bool,
+    /// The view's own size, whose accumulate tiles the warm-up draws with
+    /// where no keys say which ([`Renderer::use_tiles_of_size`]).
+    view_size: (u32, u32),
 }
 
 /// One view's change being compiled ahead: its job, and the pipelines that
@@ -173,8 +176,10 @@ impl Warmer {
         report_still: bool,
     ) -> Option<Warming> {
         let id = self.next_id;
+        let view_size = (settings.width, settings.height);
         let job = Job {
             id,
+            view_size,
             scene,
             settings: RenderSettings {
                 width: WARM_SIZE,
@@ -235,8 +240,9 @@ impl Drop for Warmer {
 /// drew with.
 fn warm_still(gpu: &Gpu, job: &Job) -> Result<(Renderer, PipelineKeys), GpuError> {
     let mut renderer = Renderer::new(gpu, job.scene.clone(), job.settings.clone())?;
-    if let Some(keys) = &job.keys {
-        renderer.use_pipelines(gpu, keys)?;
+    match &job.keys {
+        Some(keys) => renderer.use_pipelines(gpu, keys)?,
+        None => renderer.use_tiles_of_size(job.view_size.0, job.view_size.1),
     }
     renderer.render_sample(gpu)?;
     if let Some((format, view_format)) = job.resolve {
