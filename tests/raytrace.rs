@@ -430,7 +430,8 @@ fn toggling_a_lights_shadows_takes_effect() {
 /// reprojection adds the reproject pass, which runs only on a moving
 /// frame, so the warm-up must draw one; a first outline adds the
 /// accumulate pass's outline kernels, and a 6 px one its 16 px tiles,
-/// which the warm-up, drawing at 16 x 16 px, must keep; a switch from hybrid to raster may
+/// which the warm-up, drawing at 16 x 16 px, must keep, while no outline
+/// at all needs only the kernel every sample runs; a switch from hybrid to raster may
 /// change what rays walk, and an added light uploads the scene again, so
 /// neither is predicted.
 #[test]
@@ -546,6 +547,13 @@ fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
     scene.materials[1].outline_width_px = 1.5;
     assert_eq!(r.keys_for_edit(&scene), Some(keys_by_width[0]));
     assert!(r.has_pipelines(&keys_by_width[0]), "run before");
+    // A renderer that has drawn only with outlines: without them only the
+    // `main` kernel runs, which its samples ran too.
+    let outlined = rendered(&gpu, scene.clone(), temporal.clone());
+    scene.materials[1].outline_width_px = 0.0;
+    let plain = outlined.keys_for_edit(&scene).expect("written in place");
+    assert_ne!(plain, keys_by_width[0]);
+    assert!(outlined.has_pipelines(&plain), "main ran with the outlines");
     let raster = settings(&scene, RenderMode::Raster);
     assert_eq!(r.keys_for_settings(&raster), None);
     let mut more_lights = scene.clone();

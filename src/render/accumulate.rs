@@ -371,9 +371,14 @@ impl AccumulatePass {
         }
     }
 
-    /// Whether `kernels` have run ([`AccumulatePass::note_run`]).
+    /// Whether `kernels` have run ([`AccumulatePass::note_run`]): without
+    /// outlines only `main` runs, which a sample with outlines also ran.
     pub fn has_run(&self, kernels: Kernels) -> bool {
-        self.ran.contains(&kernels)
+        let outlined = Kernels {
+            outlines: true,
+            ..kernels
+        };
+        self.ran.contains(&kernels) || self.ran.contains(&outlined)
     }
 
     /// Whether `outlined` runs over the listed tiles of `tile_px` (else
