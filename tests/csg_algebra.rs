@@ -497,7 +497,7 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
 
     /// The trace kernel's CSG store is sized to a scene's programs
-    /// (`PrivateSizes::of_csg`, which runs each program on interval
+    /// (`PrivateSizes::new`, which runs each program on interval
     /// bounds). For random trees that load: the stack is at most the
     /// loader's bound (`stack_need` takes the children in their written
     /// order; the compiled program takes the neediest first, so it may
@@ -511,7 +511,7 @@ proptest! {
         rays in rays_strategy(),
     ) {
         let Some((csg, program)) = loadable(root) else { return Ok(()) };
-        let sizes = celray::accel::PrivateSizes::of_csg(&program.ops, &program.leaves);
+        let sizes = celray::accel::PrivateSizes::new(1, &program.ops, &program.leaves);
         prop_assert!(sizes.csg_stack <= csg.root.stack_need());
         let operations = program.ops.iter().filter(|o| o.op > 1).count();
         let least = if operations > 0 { 2 } else { 1 };

@@ -81,13 +81,14 @@ impl PrivateSizes {
         csg_intervals: CSG_MAX_INTERVALS,
     };
 
-    /// The CSG sizes of the programs in `ops` (each ending with
-    /// `CSG_OP_END`) over `leaves`, by running them on bounds: a leaf
-    /// pushes 1 interval (CSG_MESH_MAX_CROSSINGS / 2 for a mesh leaf),
-    /// a union the sum of its operands', an intersection the sum less 1,
-    /// a difference the sum. At least 1 each (a scene without CSG), at
-    /// most the full lengths; the trace stack is left full.
-    pub fn of_csg(ops: &[GpuCsgOp], leaves: &[GpuCsgLeaf]) -> PrivateSizes {
+    /// The sizes for a traversal stack of `trace_stack` entries and the
+    /// CSG programs in `ops` (each ending with `CSG_OP_END`) over
+    /// `leaves`, whose lengths come from running them on bounds: a leaf
+    /// pushes 1 interval (CSG_MESH_MAX_CROSSINGS / 2 for a mesh leaf), a
+    /// union the sum of its operands', an intersection the sum less 1, a
+    /// difference the sum. At least 1 each (a scene without CSG), at most
+    /// the full lengths.
+    pub fn new(trace_stack: u32, ops: &[GpuCsgOp], leaves: &[GpuCsgLeaf]) -> PrivateSizes {
         let (mut stack, mut most_stack, mut most_intervals) = (Vec::new(), 1, 1);
         for op in ops {
             match op.op {
@@ -110,7 +111,7 @@ impl PrivateSizes {
             most_intervals = most_intervals.max(stack.last().copied().unwrap_or(1));
         }
         PrivateSizes {
-            trace_stack: TRAVERSAL_STACK,
+            trace_stack: trace_stack.clamp(1, TRAVERSAL_STACK),
             csg_stack: most_stack.min(CSG_STACK),
             csg_intervals: most_intervals.min(CSG_MAX_INTERVALS),
         }
@@ -141,8 +142,8 @@ pub struct SceneAccel {
     /// (u32::MAX, 0) for CSG leaves: where its base-colour map comes from.
     pub triangle_sources: Vec<(u32, u32)>,
     /// The lengths of the private arrays the trace kernels need for this
-    /// scene ([`PrivateSizes`]: the trace stack from the depths this build
-    /// measures, the CSG lengths by [`PrivateSizes::of_csg`]).
+    /// scene ([`PrivateSizes::new`], from the depths this build measures
+    /// and its CSG programs).
     pub sizes: PrivateSizes,
     pub build_ms: f64,
 }
@@ -347,10 +348,7 @@ impl SceneAccel {
         let mut all = tlas.nodes;
         all.extend(blas_nodes);
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
-        let sizes = PrivateSizes {
-            trace_stack: tlas.depth + max_blas_depth,
-            ..PrivateSizes::of_csg(&csg_ops, &csg_leaves)
-        };
+        let sizes = PrivateSizes::new(tlas.depth + max_blas_depth, &csg_ops, &csg_leaves);
         log::info!(
             "BVH build: {} shapes, {} triangles, {} instances, {} nodes, top depth {}, \
              {sizes:?}, {build_ms:.1} ms",

@@ -246,7 +246,7 @@ impl ShaderOverrides {
 /// How a pass that traces rays walks the scene: which file serves
 /// `lib/trace_bvh.wgsl`'s functions (`trace_converged`, `trace_masked`,
 /// `any_lane`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Traversal {
     /// celray's own two-level BVH, walked in WGSL (any adapter).
     #[default]
@@ -488,6 +488,37 @@ pub fn with_sizes(source: &str, sizes: PrivateSizes) -> Result<String, GpuError>
         out = out.replacen(from.as_str(), &to, 1);
     }
     Ok(out)
+}
+
+/// One pass's modules by traversal and private-array lengths
+/// ([`create_module_sized`]), each made the first time it is asked for.
+pub struct SizedModules {
+    name: &'static str,
+    modules: std::collections::HashMap<(Traversal, PrivateSizes), wgpu::ShaderModule>,
+}
+
+impl SizedModules {
+    /// None made yet, for pass `name`.
+    pub fn new(name: &'static str) -> SizedModules {
+        SizedModules {
+            name,
+            modules: Default::default(),
+        }
+    }
+
+    /// The module with `traversal` and `sizes`, made now if not yet.
+    pub fn get(
+        &mut self,
+        gpu: &crate::gpu::Gpu,
+        traversal: Traversal,
+        sizes: PrivateSizes,
+    ) -> Result<&wgpu::ShaderModule, GpuError> {
+        use std::collections::hash_map::Entry;
+        Ok(match self.modules.entry((traversal, sizes)) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => e.insert(create_module_sized(gpu, self.name, traversal, sizes)?),
+        })
+    }
 }
 
 /// [`create_module_variant`] with private arrays of `sizes`

@@ -620,12 +620,6 @@ impl Renderer {
         }
     }
 
-    /// The widest outline of any material, in pixels, capped at the
-    /// accumulate pass's search radius.
-    fn max_outline_px(&self) -> f32 {
-        max_outline_px(&self.scene)
-    }
-
     /// Sample `k`'s level of detail for each of the scene's draws
     /// ([`SceneBuffers::draws`]) in the raster pass: an index into the
     /// draw's levels, 0 the finest ([`raster::draw_levels`]). Empty outside
@@ -676,7 +670,7 @@ impl Renderer {
         let scene_radius = ((hi - lo).length() * 0.5).max(1e-3);
         // Inverted in f64: the projection's near/far ratio is large.
         let world_from_clip = sc.clip_from_world.as_dmat4().inverse().as_mat4();
-        let max_outline = self.max_outline_px();
+        let max_outline = max_outline_px(&self.scene);
         FrameUniforms {
             clip_from_world: sc.clip_from_world.to_cols_array_2d(),
             eye_in_world: sc.eye.extend(1.0).to_array(),

@@ -3,7 +3,6 @@
 //! ray-throughput benchmark times. Group 0 is the scene's shared group,
 //! group 1 [`PASS_LAYOUT`] (the rays and their hits).
 
-use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
@@ -38,7 +37,7 @@ pub struct RayBatch {
     traversal: Traversal,
     /// By the private arrays' lengths (`SceneAccel::sizes`; the full
     /// lengths first, made at once so that a broken shader fails here).
-    modules: Mutex<HashMap<PrivateSizes, wgpu::ShaderModule>>,
+    modules: Mutex<shader::SizedModules>,
     scene_layout: wgpu::BindGroupLayout,
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
@@ -78,7 +77,8 @@ impl RayBatch {
     }
 
     fn build(gpu: &Gpu, traversal: Traversal, any_hit: bool) -> Result<RayBatch, GpuError> {
-        let module = shader::create_module_variant(gpu, "ray_batch.wgsl", traversal)?;
+        let mut modules = shader::SizedModules::new("ray_batch.wgsl");
+        modules.get(gpu, traversal, PrivateSizes::FULL)?;
         gpu.scoped(|| {
             let scene_layout = scene_layout(gpu);
             let layout = gpu
@@ -98,7 +98,7 @@ impl RayBatch {
                 (traversal == Traversal::Driver).then(|| driver_accel::bind_group_layout(gpu));
             RayBatch {
                 traversal,
-                modules: Mutex::new(HashMap::from([(PrivateSizes::FULL, module)])),
+                modules: Mutex::new(modules),
                 scene_layout,
                 layout,
                 pipeline_layout,
@@ -127,15 +127,7 @@ impl RayBatch {
             return Ok(p.clone());
         }
         let mut modules = self.modules.lock().unwrap_or_else(|e| e.into_inner());
-        let module = match modules.entry(sizes) {
-            Entry::Occupied(e) => e.into_mut(),
-            Entry::Vacant(e) => e.insert(shader::create_module_sized(
-                gpu,
-                "ray_batch.wgsl",
-                self.traversal,
-                sizes,
-            )?),
-        };
+        let module = modules.get(gpu, self.traversal, sizes)?;
         let constants = [
             ("CSG_ENABLED", f64::from(u8::from(csg))),
             ("ANY_HIT", f64::from(u8::from(self.any_hit))),

@@ -10,7 +10,6 @@
 //! [`PASS_LAYOUT`] (frame uniforms, the overflow counter, the G-buffers);
 //! the driver variant adds the driver's structures as group 2.
 
-use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 
 use wgpu::util::DeviceExt;
@@ -57,10 +56,10 @@ pub struct TracePass {
     /// runs markedly faster.
     pipelines: HashMap<Variant, wgpu::ComputePipeline>,
     variant: Variant,
-    /// The pass's modules, made as variants ask for them: by whether the
-    /// BVH is walked as packets (`lib/trace_packet.wgsl`), and the
+    /// The pass's modules, made as variants ask for them: by traversal
+    /// (packets, `lib/trace_packet.wgsl`, or each ray alone) and the
     /// private arrays' lengths.
-    modules: HashMap<(bool, PrivateSizes), wgpu::ShaderModule>,
+    modules: shader::SizedModules,
     pipeline_layout: wgpu::PipelineLayout,
     scene_layout: wgpu::BindGroupLayout,
     target_layout: wgpu::BindGroupLayout,
@@ -297,7 +296,7 @@ impl TracePass {
             TracePass {
                 pipelines: HashMap::new(),
                 variant: Variant::default(),
-                modules: HashMap::new(),
+                modules: shader::SizedModules::new("trace.wgsl"),
                 pipeline_layout: layout,
                 scene_layout,
                 target_layout,
@@ -387,15 +386,7 @@ impl TracePass {
             } else {
                 Traversal::Software
             };
-            let module = match self.modules.entry((variant.packet, variant.sizes)) {
-                Entry::Occupied(e) => e.into_mut(),
-                Entry::Vacant(e) => e.insert(shader::create_module_sized(
-                    gpu,
-                    "trace.wgsl",
-                    traversal,
-                    variant.sizes,
-                )?),
-            };
+            let module = self.modules.get(gpu, traversal, variant.sizes)?;
             let pipeline = trace_pipeline(gpu, &self.pipeline_layout, module, variant);
             self.pipelines.insert(variant, pipeline);
         }
