@@ -116,11 +116,8 @@ impl RayBatch {
         scene: &SceneBuffers,
     ) -> Result<wgpu::ComputePipeline, GpuError> {
         let csg = !scene.accel.csg_ops.is_empty();
-        // Ray queries keep no stack of celray's.
-        let sizes = match self.traversal {
-            Traversal::Driver => PrivateSizes::FULL,
-            _ => scene.accel.sizes,
-        };
+        // The driver variant too: its CSG evaluator keeps the same arrays.
+        let sizes = scene.accel.sizes;
         let key = (csg, scene.tables, sizes);
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(p) = pipelines.get(&key) {

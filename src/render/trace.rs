@@ -83,10 +83,12 @@ pub struct TracePass {
     driver_group: Option<wgpu::BindGroup>,
 }
 
-/// The trace pass composed with `lib/trace_rq.wgsl`: its own module, so the
-/// software pipelines carry none of it.
+/// The trace pass composed with `lib/trace_rq.wgsl`: its own modules, so the
+/// software pipelines carry none of it. Sized per scene as the software
+/// ones are: its CSG evaluator keeps the same private arrays, and a CSG
+/// mesh leaf walks celray's BVH of that mesh on the same stack.
 struct DriverVariant {
-    module: wgpu::ShaderModule,
+    modules: shader::SizedModules,
     layout: wgpu::BindGroupLayout,
     pipelines: HashMap<Variant, wgpu::ComputePipeline>,
 }
@@ -354,11 +356,12 @@ impl TracePass {
             if let Some(v) = self.driver.as_mut() {
                 if !v.pipelines.contains_key(&variant) {
                     let layouts = [&self.scene_layout, &self.target_layout];
+                    let module = v.modules.get(gpu, Traversal::Driver, variant.sizes)?;
                     let pipeline = gpu.scoped(|| {
                         driver_accel::pipeline(
                             gpu,
                             "trace pipeline (driver ray queries)",
-                            &v.module,
+                            module,
                             &layouts,
                             &v.layout,
                             // Primary rays go to the driver's traversal:
@@ -407,10 +410,9 @@ impl TracePass {
         self.driver_group = None;
         if let Some(accel) = driver {
             if self.driver.is_none() {
-                let module = shader::create_module_variant(gpu, "trace.wgsl", Traversal::Driver)?;
                 let layout = gpu.scoped(|| driver_accel::bind_group_layout(gpu))?;
                 self.driver = Some(DriverVariant {
-                    module,
+                    modules: shader::SizedModules::new("trace.wgsl"),
                     layout,
                     pipelines: HashMap::new(),
                 });
