@@ -1046,3 +1046,79 @@ fn a_small_warm_up_draws_with_a_large_views_tiles() {
     r.use_tiles_of_size(1280, 720);
     assert_eq!(r.outline_tile_px(), 8, "a 720p view's");
 }
+
+/// The raster pass does not clear its normal + depth target (a clear is a
+/// pass over the image's memory on lavapipe), so where nothing is drawn
+/// the target keeps an earlier sample's values. Every reader (outline
+/// marks, accumulate, reproject, the hybrid trace pass) must read a
+/// texel's normal and depth only where its id is not 0. Here a renderer
+/// first fills the whole target with the floor (a camera that sees no
+/// sky), then turns to a view with sky around outlined objects; its image
+/// must equal, byte for byte, that of a fresh renderer (whose target was
+/// zeroed) at the second view, in raster and in hybrid mode.
+#[test]
+fn a_stale_normal_depth_target_changes_no_pixel() {
+    let gpu = gpu();
+    let mut scene = celray::scene::Scene::builtin_default();
+    scene.camera.width = 96;
+    scene.camera.height = 54;
+    let mut floor_only = scene.camera.clone();
+    floor_only.eye = Vec3::new(0.0, 1.5, 3.0);
+    floor_only.target = Vec3::new(0.0, 0.0, 0.0);
+    let mut with_sky = scene.camera.clone();
+    with_sky.eye = Vec3::new(0.0, 0.3, 5.0);
+    with_sky.target = Vec3::new(0.0, 1.0, 0.0);
+    for mode in [RenderMode::Raster, RenderMode::Hybrid] {
+        let settings = RenderSettings {
+            mode,
+            spp: 4,
+            seed: 3,
+            ..pixel_centre_settings(&scene)
+        };
+        let mut reused =
+            celray::render::Renderer::new(&gpu, scene.clone(), settings.clone()).unwrap();
+        reused.set_camera(floor_only.clone());
+        reused.render_to_convergence(&gpu, |_, _| {}).unwrap();
+        let ids = reused.read_ids(&gpu).unwrap();
+        assert!(
+            ids.iter().all(|&id| id != 0),
+            "{}: the first view must cover every pixel",
+            mode.name()
+        );
+        reused.set_camera(with_sky.clone());
+        reused.render_to_convergence(&gpu, |_, _| {}).unwrap();
+
+        let mut fresh_scene = scene.clone();
+        fresh_scene.camera = with_sky.clone();
+        let fresh = rendered(&gpu, fresh_scene, settings.clone());
+        let ids = fresh.read_ids(&gpu).unwrap();
+        let sky = ids.iter().filter(|&&id| id == 0).count();
+        // At least a fifth of the image is sky, next to the objects'
+        // outlines: where the reused renderer's target still holds floor.
+        assert!(
+            sky * 5 >= ids.len() && sky < ids.len(),
+            "{}: {sky} of {} pixels are sky",
+            mode.name(),
+            ids.len()
+        );
+        if mode == RenderMode::Raster {
+            // The stale values are there to be misread (raster mode reads
+            // back the raster target): sky texels that differ between the
+            // two renderers' targets.
+            let (a, b) = (
+                reused.read_normal_depth(&gpu).unwrap(),
+                fresh.read_normal_depth(&gpu).unwrap(),
+            );
+            let stale = (0..ids.len())
+                .filter(|&i| ids[i] == 0 && a[i] != b[i])
+                .count();
+            assert!(stale * 2 >= sky, "only {stale} of {sky} sky texels differ");
+        }
+        assert_eq!(reused.read_ids(&gpu).unwrap(), ids, "{}", mode.name());
+        assert!(
+            reused.read_srgb8(&gpu).unwrap() == fresh.read_srgb8(&gpu).unwrap(),
+            "{}: the image depends on stale normal + depth texels",
+            mode.name()
+        );
+    }
+}

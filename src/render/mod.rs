@@ -1023,7 +1023,9 @@ impl Renderer {
     }
 
     /// The G-buffer's normal (xyz, world space) and view depth (w) per
-    /// pixel, as the accumulate pass's outline search reads them. For tests.
+    /// pixel, as the accumulate pass's outline search reads them. Defined
+    /// only where the id ([`Renderer::read_ids`]) is not 0: the raster pass
+    /// does not clear it. For tests.
     pub fn read_normal_depth(&self, gpu: &Gpu) -> Result<Vec<[f32; 4]>, GpuError> {
         let bytes = readback::read_texture(gpu, self.gbuffer(gpu).0, 16)?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())

@@ -8,7 +8,7 @@ use std::ops::Range;
 
 use glam::{Mat3, Vec3};
 
-use crate::gpu::twins::{Vertex, FAR_DEPTH};
+use crate::gpu::twins::Vertex;
 use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{shader, Gpu, GpuError};
 use crate::render::camera::SampleCamera;
@@ -133,7 +133,10 @@ impl RasterPass {
         }));
     }
 
-    /// Clears the G-buffer to `background` and draws what `draws` selects.
+    /// Clears the G-buffer's colour (raster mode only) to `background`, its
+    /// ids to 0 and the depth buffer, and draws what `draws` selects. The
+    /// normal + depth target keeps what it held where nothing is drawn:
+    /// read it only where the id is not 0.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -171,17 +174,28 @@ impl RasterPass {
         };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("raster pass"),
+            // On the CPU driver each clear is a pass over the image's
+            // memory, so only what is read where nothing was drawn is
+            // cleared. Unshaded (hybrid mode) has no colour target. The
+            // normal + depth target is never cleared: every reader (trace,
+            // outline marks, accumulate, reproject) reads a texel's normal
+            // and depth only where its id is not 0, that is where a
+            // fragment wrote both.
             color_attachments: &[
-                attachment(&color, bg),
-                attachment(
-                    &normal_depth,
-                    wgpu::Color {
-                        r: 0.0,
-                        g: 0.0,
-                        b: 0.0,
-                        a: f64::from(FAR_DEPTH),
+                if self.variant.shade {
+                    attachment(&color, bg)
+                } else {
+                    None
+                },
+                Some(wgpu::RenderPassColorAttachment {
+                    view: &normal_depth,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
                     },
-                ),
+                }),
                 attachment(&id, wgpu::Color::TRANSPARENT),
                 if self.variant.textures {
                     attachment(&albedo, wgpu::Color::TRANSPARENT)
@@ -408,13 +422,6 @@ fn raster_pipelines(
         })
     };
     let all = wgpu::ColorWrites::ALL;
-    // Unshaded fragments (hybrid mode) write no colour: the target stays
-    // as cleared.
-    let color_writes = if variant.shade {
-        all
-    } else {
-        wgpu::ColorWrites::empty()
-    };
     let pipeline = |cull_mode, depth_compare| {
         gpu.device
             .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -445,7 +452,13 @@ fn raster_pipelines(
                     entry_point: Some(fs),
                     compilation_options: options(),
                     targets: &[
-                        target(COLOR_FORMAT, color_writes),
+                        // Unshaded fragments (hybrid mode) write no colour,
+                        // and the pass has no colour target then.
+                        if variant.shade {
+                            target(COLOR_FORMAT, all)
+                        } else {
+                            None
+                        },
                         target(NORMAL_DEPTH_FORMAT, all),
                         target(ID_FORMAT, all),
                         // Only textured scenes' trace pass reads the albedo.

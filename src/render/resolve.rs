@@ -155,8 +155,11 @@ impl ResolvePass {
                 view,
                 depth_slice: None,
                 resolve_target: None,
+                // The triangle covers every pixel: a clear first would
+                // be a pass over the image's memory for nothing (on the
+                // CPU driver a clear costs about what a write pass does).
                 ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    load: wgpu::LoadOp::Load,
                     store: wgpu::StoreOp::Store,
                 },
             })],
