@@ -49,6 +49,13 @@
 @group(1) @binding(5) var<storage, read_write> outline_dispatch: array<atomic<u32>, 4>;
 // The marked tiles' indices, the first x of them written, in no order.
 @group(1) @binding(9) var<storage, read_write> tile_list: array<u32>;
+// One word per tile, made on the CPU for each sample
+// (accel::screen_tiles::source_tiles): 0 where no texel of the tile or
+// its halo can be a source, from the projected boxes of the instances
+// whose outline reaches other pixels (1 everywhere where it is not made:
+// scenes of many instances). Such a tile is skipped without reading the
+// G-buffer: way 1 below, proven before the texels are read.
+@group(1) @binding(10) var<storage, read> source_tiles: array<u32>;
 
 // The accumulate tile's edge in pixels, as the accumulate pipelines have
 // it (src/render/accumulate.rs, accumulate_tile_px).
@@ -65,6 +72,10 @@ fn outline_width(id: u32) -> f32 {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let tiles = (frame.size_px + vec2<u32>(ACCUMULATE_TILE - 1u)) / ACCUMULATE_TILE;
     if gid.x >= tiles.x * tiles.y {
+        return;
+    }
+    if source_tiles[gid.x] == 0u {
+        tile_marks[gid.x] = 0u;
         return;
     }
     // The same radius and halo as the accumulate pass's.

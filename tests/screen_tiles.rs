@@ -1,7 +1,7 @@
 //! Which instances each screen tile's primary rays can meet
 //! (`accel::screen_tiles`), against the CPU tracer: no GPU needed.
 use celray::accel::bvh::Aabb;
-use celray::accel::screen_tiles::{primary_tiles, tile_list};
+use celray::accel::screen_tiles::{primary_tiles, source_tiles, tile_list};
 use celray::accel::SceneAccel;
 use celray::gpu::twins::{PRIMARY_TILE_MAX, PRIMARY_TILE_WORDS};
 use celray::render::camera::{depth_range, sample_camera};
@@ -159,4 +159,75 @@ fn crowded_tiles_walk_and_boxes_off_the_image_are_left_out() {
         full,
         "the tiles of 8 balls walk"
     );
+}
+
+/// The outline marks skip a tile unread where `source_tiles` says no
+/// source (an instance whose outline reaches other pixels) can show
+/// within the outline's reach of it. So every pixel whose closest hit
+/// (CPU tracer, the kernel's ray) is a source must flag every tile that
+/// holds a pixel within `reach` of it in x and in y: the tiles whose
+/// halo holds it. Sources here: the two balls, the crate and the cow;
+/// for sub-pixel shifts and a lens point, 8 px tiles with reach 1 and 3,
+/// 16 px tiles with reach 7. And the flags are not everywhere: the
+/// floor, the other solids and the sky are no source, so at least a
+/// third of the tiles stay 0.
+#[test]
+fn a_source_pixel_flags_every_tile_within_its_reach() {
+    let (mut scene, accel) = scene();
+    scene.camera.aperture_radius = 0.15;
+    scene.camera.focus_distance = Some(5.0);
+    let size = (scene.camera.width, scene.camera.height);
+    let sources = [1u32, 2, 3, 7];
+    let cases = [
+        (Vec2::new(0.0, 0.0), Vec2::ZERO, 8u32, 1u32),
+        (Vec2::new(0.999, 0.5), Vec2::new(0.6, -0.8), 8, 3),
+        (Vec2::new(0.5, 0.999), Vec2::new(-1.0, 0.0), 16, 7),
+    ];
+    for (shift, lens, tile, reach) in cases {
+        let depth = depth_range(&scene.camera, scene.bounds());
+        let cam = sample_camera(&scene.camera, size, shift, lens, depth);
+        let flags = source_tiles(
+            &accel.world_bounds,
+            |k| sources.contains(&(k as u32)),
+            cam.clip_from_world,
+            size,
+            tile,
+            reach,
+        );
+        let tiles_x = size.0.div_ceil(tile);
+        assert_eq!(flags.len() as u32, tiles_x * size.1.div_ceil(tile));
+        let mut source_pixels = 0;
+        for y in 0..size.1 {
+            for x in 0..size.0 {
+                let (o, d) = kernel_ray(cam.clip_from_world, size, x, y);
+                let Some(h) = accel.closest_hit(o, d, 0.0, f32::INFINITY).hit else {
+                    continue;
+                };
+                if !sources.contains(&h.instance) {
+                    continue;
+                }
+                source_pixels += 1;
+                let span =
+                    |v: u32, n: u32| v.saturating_sub(reach) / tile..=(v + reach).min(n - 1) / tile;
+                for ty in span(y, size.1) {
+                    for tx in span(x, size.0) {
+                        assert_eq!(
+                            flags[(ty * tiles_x + tx) as usize],
+                            1,
+                            "pixel ({x}, {y}) of instance {} reaches tile ({tx}, {ty}) \
+                             ({tile} px, reach {reach})",
+                            h.instance
+                        );
+                    }
+                }
+            }
+        }
+        assert!(source_pixels > 1000, "{source_pixels} source pixels");
+        let unflagged = flags.iter().filter(|&&f| f == 0).count();
+        assert!(
+            unflagged * 3 >= flags.len(),
+            "{unflagged} of {} tiles unflagged ({tile} px, reach {reach})",
+            flags.len()
+        );
+    }
 }

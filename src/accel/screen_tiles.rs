@@ -1,4 +1,5 @@
-//! Which instances a primary ray can meet, per screen tile.
+//! Which instances a primary ray can meet, per screen tile; and which
+//! tiles an instance with an outline may reach ([`source_tiles`]).
 //!
 //! A primary ray of pixel p leaves the near plane along the points that the
 //! sample's projection maps onto p's centre, so every point it meets
@@ -59,12 +60,7 @@ pub fn primary_tiles(
     let mut out = vec![0u32; tiles.0 * tiles.1 * words];
     let eye = clip_from_world.inverse().project_point3(glam::Vec3::ZERO);
     for (k, b) in bounds.iter().enumerate().filter(|&(k, _)| seen(k)) {
-        let scale = b.min.abs().max(b.max.abs()).max(eye.abs()).max_element();
-        let grown = Aabb {
-            min: b.min - BOX_PAD_REL * scale,
-            max: b.max + BOX_PAD_REL * scale,
-        };
-        let Some((lo, hi)) = pixel_rect(&grown, clip_from_world, size) else {
+        let Some((lo, hi)) = pixel_rect(&grown_box(b, eye), clip_from_world, size) else {
             continue;
         };
         let first = |v: f32, n: usize| ((v / tile_px as f32).floor().max(0.0) as usize).min(n - 1);
@@ -86,6 +82,54 @@ pub fn primary_tiles(
         }
     }
     out
+}
+
+/// Per tile of `tile_px` over `size`, row by row: 1 where a pixel of an
+/// instance k with `source(k)` (one whose outline reaches other pixels)
+/// may lie within `reach_px` pixels (in x and in y) of the tile, else 0.
+/// The outline marks (`shaders/outline_tiles.wgsl`) look for such a
+/// source texel in each tile and its halo of `reach_px`; where this says
+/// 0 none can be there, so they skip the tile without reading it. The
+/// same rectangles as [`primary_tiles`]' (hybrid mode's rasterized meshes
+/// and the raster pass's triangles lie inside the same boxes), without
+/// the lists' length limit.
+pub fn source_tiles(
+    bounds: &[Aabb],
+    source: impl Fn(usize) -> bool,
+    clip_from_world: Mat4,
+    size: (u32, u32),
+    tile_px: u32,
+    reach_px: u32,
+) -> Vec<u32> {
+    let tiles = (
+        size.0.div_ceil(tile_px) as usize,
+        size.1.div_ceil(tile_px) as usize,
+    );
+    let mut out = vec![0u32; tiles.0 * tiles.1];
+    let eye = clip_from_world.inverse().project_point3(glam::Vec3::ZERO);
+    for (_, b) in bounds.iter().enumerate().filter(|&(k, _)| source(k)) {
+        let Some((lo, hi)) = pixel_rect(&grown_box(b, eye), clip_from_world, size) else {
+            continue;
+        };
+        let reach = reach_px as f32;
+        let tile = |v: f32, n: usize| ((v / tile_px as f32).floor().max(0.0) as usize).min(n - 1);
+        let (x0, x1) = (tile(lo.x - reach, tiles.0), tile(hi.x + reach, tiles.0));
+        let (y0, y1) = (tile(lo.y - reach, tiles.1), tile(hi.y + reach, tiles.1));
+        for ty in y0..=y1 {
+            out[ty * tiles.0 + x0..=ty * tiles.0 + x1].fill(1);
+        }
+    }
+    out
+}
+
+/// Box `b` grown by [`BOX_PAD_REL`] of its and the eye's largest
+/// coordinate.
+fn grown_box(b: &Aabb, eye: glam::Vec3) -> Aabb {
+    let scale = b.min.abs().max(b.max.abs()).max(eye.abs()).max_element();
+    Aabb {
+        min: b.min - BOX_PAD_REL * scale,
+        max: b.max + BOX_PAD_REL * scale,
+    }
 }
 
 /// The pixel rectangle (pixel centres at integer coordinates, as the

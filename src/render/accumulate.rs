@@ -51,7 +51,7 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 11] = [
 /// Group 1 of the tile-marking dispatch, binding by binding as
 /// `shaders/outline_tiles.wgsl` declares it.
 /// It holds the whole G-buffer of lib/gbuffer.wgsl, the colour unread.
-pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
+pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 11] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     texture_entry(1, FLOAT),                       // color_tex
     texture_entry(2, FLOAT),                       // normal_depth_tex
@@ -62,6 +62,7 @@ pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 10] = [
     read_only_storage_entry(7, wgpu::ShaderStages::COMPUTE), // traced_normal_depth
     read_only_storage_entry(8, wgpu::ShaderStages::COMPUTE), // traced_id
     read_write_storage_entry(9),                   // tile_list
+    read_only_storage_entry(10, wgpu::ShaderStages::COMPUTE), // source_tiles
 ];
 
 /// Word 3 of the outline dispatch buffer where the `outlined` kernel reads
@@ -141,6 +142,11 @@ pub struct AccumulatePass {
     marks: Option<wgpu::Buffer>,
     /// The marked tiles' indices.
     tile_list: Option<wgpu::Buffer>,
+    /// Per tile, 0 where the marks may skip it unread
+    /// ([`AccumulatePass::write_source_tiles`]), as many as the smaller
+    /// tiles need; and what it holds (empty: 1 everywhere, as made).
+    source_tiles: Option<wgpu::Buffer>,
+    written_sources: Vec<u32>,
     /// The kernels that have run ([`AccumulatePass::note_run`]).
     ran: Vec<Kernels>,
     /// The most workgroups a dispatch may count in x.
@@ -238,6 +244,8 @@ impl AccumulatePass {
                 groups: None,
                 marks: None,
                 tile_list: None,
+                source_tiles: None,
+                written_sources: Vec::new(),
                 ran: Vec::new(),
                 max_workgroups: gpu.device.limits().max_compute_workgroups_per_dimension,
             }
@@ -268,6 +276,13 @@ impl AccumulatePass {
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
+        let source_tiles = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("outline source tiles"),
+                contents: bytemuck::cast_slice(&vec![1u32; (most_x * most_y) as usize]),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            });
         let group = |label, layout, entries: &[(u32, wgpu::BindingResource)]| {
             let entries: Vec<_> = entries
                 .iter()
@@ -339,6 +354,7 @@ impl AccumulatePass {
                         (4, marks.as_entire_binding()),
                         (5, outline_dispatch.as_entire_binding()),
                         (9, tile_list.as_entire_binding()),
+                        (10, source_tiles.as_entire_binding()),
                     ],
                 ]
                 .concat(),
@@ -354,6 +370,29 @@ impl AccumulatePass {
         self.groups = Some(groups);
         self.marks = Some(marks);
         self.tile_list = Some(tile_list);
+        self.source_tiles = Some(source_tiles);
+        self.written_sources.clear();
+    }
+
+    /// Uploads the sample's source tiles (`accel::screen_tiles::
+    /// source_tiles`, for the tile edge the sample uses), or 1 for every
+    /// tile with `None`; nothing where the buffer already holds them.
+    pub fn write_source_tiles(&mut self, gpu: &Gpu, sources: Option<Vec<u32>>) {
+        let Some(buffer) = &self.source_tiles else {
+            return;
+        };
+        let sources = sources.unwrap_or_default();
+        if sources == self.written_sources {
+            return;
+        }
+        let words = if sources.is_empty() {
+            vec![1u32; (buffer.size() / 4) as usize]
+        } else {
+            sources.clone()
+        };
+        gpu.queue
+            .write_buffer(buffer, 0, bytemuck::cast_slice(&words));
+        self.written_sources = sources;
     }
 
     /// The tile edge for a `width` x `height` image whose widest outline

@@ -713,6 +713,30 @@ impl Renderer {
         )
     }
 
+    /// Per accumulate tile of `tile_px`, whether an instance whose outline
+    /// reaches other pixels may show within the outline radius of it
+    /// (`accel::screen_tiles::source_tiles`), in the sample whose
+    /// projection is `clip_from_world`; `None` (every tile may) in scenes
+    /// of more than `MAX_TILED_INSTANCES` instances, where projecting
+    /// them all for each sample would cost more than the reads it saves.
+    fn source_tiles_seen_by(&self, clip_from_world: glam::Mat4, tile_px: u32) -> Option<Vec<u32>> {
+        let accel = &self.buffers.accel;
+        if accel.world_bounds.len() > crate::accel::screen_tiles::MAX_TILED_INSTANCES {
+            return None;
+        }
+        let scene = &self.scene;
+        let order = &self.buffers.instance_order;
+        let reach = max_outline_px(scene).floor() as u32;
+        Some(crate::accel::screen_tiles::source_tiles(
+            &accel.world_bounds,
+            |k| scene.materials[scene.instances[order[k]].material].outline_width_px >= 1.0,
+            clip_from_world,
+            (self.settings.width, self.settings.height),
+            tile_px,
+            reach,
+        ))
+    }
+
     /// Renders one more sample into the accumulator (one dispatch per pass,
     /// one sample per pixel: see the loop limit in STACK-NOTES.md), timing
     /// its passes when [`Renderer::enable_pass_timing`] was called and the
@@ -768,6 +792,11 @@ impl Renderer {
         let kernels = self.accumulate_kernels(&self.scene, &self.settings);
         self.accumulate.note_run(kernels);
         let (outlines, tile_px) = (kernels.outlines, kernels.tile_px);
+        if outlines {
+            let clip_from_world = glam::Mat4::from_cols_array_2d(&uniforms.clip_from_world);
+            let sources = self.source_tiles_seen_by(clip_from_world, tile_px);
+            self.accumulate.write_source_tiles(gpu, sources);
+        }
         let mut timer = self.timer.as_mut().filter(|_| timed);
         let traced = mode != RenderMode::Raster;
         if let Some((pass, _)) = &moving {
