@@ -50,7 +50,7 @@
 // The marked tiles' indices, the first x of them written, in no order.
 @group(1) @binding(9) var<storage, read_write> tile_list: array<u32>;
 // One word per tile, made on the CPU for each sample
-// (accel::screen_tiles::source_tiles): 0 where no texel of the tile or
+// (accel::screen_tiles::reached_tiles): 0 where no texel of the tile or
 // its halo can be a source, from the projected boxes of the instances
 // whose outline reaches other pixels (1 everywhere where it is not made:
 // scenes of many instances). Such a tile is skipped without reading the

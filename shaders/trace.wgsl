@@ -36,7 +36,9 @@
 @group(1) @binding(9) var<storage, read> shadow_cells: array<u32>;
 // Per 8 x 8 tile of pixels (one workgroup), the instances its primary rays
 // can meet, or PRIMARY_TILE_WALK (src/accel/screen_tiles.rs): made on the
-// CPU for each sample's camera.
+// CPU for each sample's camera. After the records, one word per tile: in
+// hybrid mode, 0 where no rasterized mesh can show (its raster G-buffer
+// is the background there, unread).
 @group(1) @binding(10) var<storage, read> primary_tiles: array<u32>;
 // shadow_cells again, as vec4s: the instances' bounding spheres
 // (may_meet_sphere), each loaded at once rather than word by word.
@@ -448,10 +450,13 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
 
     let hybrid = frame.mode == RENDER_MODE_HYBRID;
     var hit: TraceHit;
+    var raster_may_show = true;
     if PRIMARY_TILES {
         // The workgroup's tile: every invocation of it takes the same path.
-        let tiles_x = (frame.size_px.x + TRACE_WORKGROUP - 1u) / TRACE_WORKGROUP;
+        let tiles = (frame.size_px + vec2<u32>(TRACE_WORKGROUP - 1u)) / TRACE_WORKGROUP;
+        let tiles_x = tiles.x;
         let r = (wg.y * tiles_x + wg.x) * PRIMARY_TILE_WORDS;
+        raster_may_show = primary_tiles[tiles.x * tiles.y * PRIMARY_TILE_WORDS + wg.y * tiles_x + wg.x] != 0u;
         let listed = primary_tiles[r] != PRIMARY_TILE_WALK;
         if listed {
             hit = trace_listed(r, o, d, hybrid);
@@ -463,7 +468,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     } else {
         hit = trace_converged(o, d, 0.0, 3.0e38, hybrid, false);
     }
-    if hybrid {
+    // Where no mesh can show, the whole workgroup skips the raster reads.
+    if hybrid && raster_may_show {
         let id = textureLoad(raster_id, pixel, 0).x;
         if id != 0u {
             let nd = textureLoad(raster_normal_depth, pixel, 0);

@@ -1322,8 +1322,23 @@ fn primary_tiles_draw_what_the_walk_draws() {
             r.read_primary_tiles(&gpu).unwrap() == tiles,
             "{file}: the tiles the kernel read"
         );
-        let count = tiles.len() / celray::gpu::twins::PRIMARY_TILE_WORDS as usize;
+        // Per tile a record, then one word: whether a rasterized mesh may
+        // show (hybrid mode), where the kernel reads the raster G-buffer.
+        let count = tiles.len() / (celray::gpu::twins::PRIMARY_TILE_WORDS as usize + 1);
         assert_eq!(count, 21 * 12, "{file}: 8 x 8 tiles over 164 x 92");
+        let meshes = tiles[tiles.len() - count..]
+            .iter()
+            .filter(|&&m| m == 1)
+            .count();
+        if mode == RenderMode::Hybrid {
+            // The cow covers some tiles, not all.
+            assert!(
+                meshes > 0 && meshes < count / 2,
+                "{file}: {meshes} mesh tiles"
+            );
+        } else {
+            assert_eq!(meshes, 0, "{file}: raytrace mode rasterizes nothing");
+        }
         let lists: Vec<&[u32]> = (0..count)
             .filter_map(|t| celray::accel::screen_tiles::tile_list(&tiles, t))
             .collect();

@@ -1,7 +1,7 @@
 //! Which instances each screen tile's primary rays can meet
 //! (`accel::screen_tiles`), against the CPU tracer: no GPU needed.
 use celray::accel::bvh::Aabb;
-use celray::accel::screen_tiles::{primary_tiles, source_tiles, tile_list};
+use celray::accel::screen_tiles::{primary_tiles, reached_tiles, tile_list};
 use celray::accel::SceneAccel;
 use celray::gpu::twins::{PRIMARY_TILE_MAX, PRIMARY_TILE_WORDS};
 use celray::render::camera::{depth_range, sample_camera};
@@ -161,14 +161,15 @@ fn crowded_tiles_walk_and_boxes_off_the_image_are_left_out() {
     );
 }
 
-/// The outline marks skip a tile unread where `source_tiles` says no
+/// The outline marks skip a tile unread where `reached_tiles` says no
 /// source (an instance whose outline reaches other pixels) can show
 /// within the outline's reach of it. So every pixel whose closest hit
 /// (CPU tracer, the kernel's ray) is a source must flag every tile that
 /// holds a pixel within `reach` of it in x and in y: the tiles whose
 /// halo holds it. Sources here: the two balls, the crate and the cow;
-/// for sub-pixel shifts and a lens point, 8 px tiles with reach 1 and 3,
-/// 16 px tiles with reach 7. And the flags are not everywhere: the
+/// for sub-pixel shifts and lens points, 8 px tiles with reach 1 and 3,
+/// 16 px tiles with reach 7; and 8 px tiles with reach 0, as the trace
+/// pass asks which tiles a (rasterized) mesh may show in. And the flags are not everywhere: the
 /// floor, the other solids and the sky are no source, so at least a
 /// third of the tiles stay 0.
 #[test]
@@ -180,13 +181,15 @@ fn a_source_pixel_flags_every_tile_within_its_reach() {
     let sources = [1u32, 2, 3, 7];
     let cases = [
         (Vec2::new(0.0, 0.0), Vec2::ZERO, 8u32, 1u32),
+        // Reach 0: the trace pass's test for a rasterized mesh in its tile.
+        (Vec2::new(0.25, 0.75), Vec2::new(0.0, 1.0), 8, 0),
         (Vec2::new(0.999, 0.5), Vec2::new(0.6, -0.8), 8, 3),
         (Vec2::new(0.5, 0.999), Vec2::new(-1.0, 0.0), 16, 7),
     ];
     for (shift, lens, tile, reach) in cases {
         let depth = depth_range(&scene.camera, scene.bounds());
         let cam = sample_camera(&scene.camera, size, shift, lens, depth);
-        let flags = source_tiles(
+        let flags = reached_tiles(
             &accel.world_bounds,
             |k| sources.contains(&(k as u32)),
             cam.clip_from_world,

@@ -1,5 +1,5 @@
 //! Which instances a primary ray can meet, per screen tile; and which
-//! tiles an instance with an outline may reach ([`source_tiles`]).
+//! tiles an instance may reach ([`reached_tiles`]).
 //!
 //! A primary ray of pixel p leaves the near plane along the points that the
 //! sample's projection maps onto p's centre, so every point it meets
@@ -84,18 +84,20 @@ pub fn primary_tiles(
     out
 }
 
-/// Per tile of `tile_px` over `size`, row by row: 1 where a pixel of an
-/// instance k with `source(k)` (one whose outline reaches other pixels)
-/// may lie within `reach_px` pixels (in x and in y) of the tile, else 0.
-/// The outline marks (`shaders/outline_tiles.wgsl`) look for such a
-/// source texel in each tile and its halo of `reach_px`; where this says
-/// 0 none can be there, so they skip the tile without reading it. The
-/// same rectangles as [`primary_tiles`]' (hybrid mode's rasterized meshes
-/// and the raster pass's triangles lie inside the same boxes), without
-/// the lists' length limit.
-pub fn source_tiles(
+/// Per tile of `tile_px` over `size`, row by row: 1 where an instance k
+/// with `pick(k)` may show within `reach_px` pixels (in x and in y) of
+/// the tile, else 0. The same rectangles as [`primary_tiles`]' (hybrid
+/// mode's rasterized meshes and the raster pass's triangles lie inside
+/// the same boxes), without the lists' length limit. Two uses:
+/// - the outline marks (`shaders/outline_tiles.wgsl`) look for a *source*
+///   texel (an instance whose outline reaches other pixels) in each tile
+///   and its halo of the outline radius; where no source is in reach they
+///   skip the tile without reading it;
+/// - in hybrid mode the trace pass reads the raster G-buffer only in the
+///   tiles where a (rasterized) mesh may show, `reach_px` 0.
+pub fn reached_tiles(
     bounds: &[Aabb],
-    source: impl Fn(usize) -> bool,
+    pick: impl Fn(usize) -> bool,
     clip_from_world: Mat4,
     size: (u32, u32),
     tile_px: u32,
@@ -107,7 +109,7 @@ pub fn source_tiles(
     );
     let mut out = vec![0u32; tiles.0 * tiles.1];
     let eye = clip_from_world.inverse().project_point3(glam::Vec3::ZERO);
-    for (_, b) in bounds.iter().enumerate().filter(|&(k, _)| source(k)) {
+    for (_, b) in bounds.iter().enumerate().filter(|&(k, _)| pick(k)) {
         let Some((lo, hi)) = pixel_rect(&grown_box(b, eye), clip_from_world, size) else {
             continue;
         };

@@ -375,7 +375,7 @@ impl AccumulatePass {
     }
 
     /// Uploads the sample's source tiles (`accel::screen_tiles::
-    /// source_tiles`, for the tile edge the sample uses), or 1 for every
+    /// reached_tiles`, for the tile edge the sample uses), or 1 for every
     /// tile with `None`; nothing where the buffer already holds them.
     pub fn write_source_tiles(&mut self, gpu: &Gpu, sources: Option<Vec<u32>>) {
         let Some(buffer) = &self.source_tiles else {

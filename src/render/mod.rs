@@ -692,8 +692,10 @@ impl Renderer {
     }
 
     /// Sample `k`'s primary-ray tiles (`accel::screen_tiles`) for primary
-    /// mode `mode`: hybrid mode's primary rays skip the meshes, which it
-    /// rasterizes.
+    /// mode `mode`, as the trace pass reads them: the records (hybrid
+    /// mode's primary rays skip the meshes, which it rasterizes), then one
+    /// word per tile, in hybrid mode 1 where a mesh may show (0 in
+    /// raytrace mode, where it is not read).
     pub fn primary_tiles(&self, k: u32, mode: RenderMode) -> Vec<u32> {
         let camera = self.camera_for(&self.sample_schedule().sample(k));
         self.tiles_seen_by(camera.clip_from_world, mode)
@@ -704,18 +706,30 @@ impl Renderer {
     fn tiles_seen_by(&self, clip_from_world: glam::Mat4, mode: RenderMode) -> Vec<u32> {
         let accel = &self.buffers.accel;
         let hybrid = mode == RenderMode::Hybrid;
-        crate::accel::screen_tiles::primary_tiles(
+        let mesh = |i: usize| accel.shapes[accel.instances[i].2 as usize].kind == SHAPE_MESH;
+        let size = (self.settings.width, self.settings.height);
+        let mut tiles = crate::accel::screen_tiles::primary_tiles(
             &accel.world_bounds,
-            |i| !hybrid || accel.shapes[accel.instances[i].2 as usize].kind != SHAPE_MESH,
+            |i| !hybrid || !mesh(i),
             clip_from_world,
-            (self.settings.width, self.settings.height),
+            size,
             TRACE_WORKGROUP,
-        )
+        );
+        let meshes = crate::accel::screen_tiles::reached_tiles(
+            &accel.world_bounds,
+            |i| hybrid && mesh(i),
+            clip_from_world,
+            size,
+            TRACE_WORKGROUP,
+            0,
+        );
+        tiles.extend(meshes);
+        tiles
     }
 
     /// Per accumulate tile of `tile_px`, whether an instance whose outline
     /// reaches other pixels may show within the outline radius of it
-    /// (`accel::screen_tiles::source_tiles`), in the sample whose
+    /// (`accel::screen_tiles::reached_tiles`), in the sample whose
     /// projection is `clip_from_world`; `None` (every tile may) in scenes
     /// of more than `MAX_TILED_INSTANCES` instances, where projecting
     /// them all for each sample would cost more than the reads it saves.
@@ -727,7 +741,7 @@ impl Renderer {
         let scene = &self.scene;
         let order = &self.buffers.instance_order;
         let reach = max_outline_px(scene).floor() as u32;
-        Some(crate::accel::screen_tiles::source_tiles(
+        Some(crate::accel::screen_tiles::reached_tiles(
             &accel.world_bounds,
             |k| scene.materials[scene.instances[order[k]].material].outline_width_px >= 1.0,
             clip_from_world,

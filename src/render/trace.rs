@@ -234,14 +234,24 @@ fn tile_count(width: u32, height: u32) -> u64 {
     u64::from(width.div_ceil(TRACE_WORKGROUP)) * u64::from(height.div_ceil(TRACE_WORKGROUP))
 }
 
-/// A tile buffer for the image whose every tile walks the BVH: what a
-/// variant with `PRIMARY_TILES` reads before the first tiles are written.
+/// The words of the tile buffer of a `width` x `height` image: per tile a
+/// record of `PRIMARY_TILE_WORDS`, then per tile whether a rasterized
+/// mesh may show there (`Renderer::primary_tiles`).
+fn tile_words(width: u32, height: u32) -> usize {
+    tile_count(width, height) as usize * (PRIMARY_TILE_WORDS as usize + 1)
+}
+
+/// A tile buffer for the image whose every tile walks the BVH and may
+/// show a mesh: what a variant with `PRIMARY_TILES` reads before the first
+/// tiles are written.
 fn walking_tiles(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
-    let words = tile_count(width, height) as usize * PRIMARY_TILE_WORDS as usize;
+    let records = tile_count(width, height) as usize * PRIMARY_TILE_WORDS as usize;
+    let mut words = vec![PRIMARY_TILE_WALK; records];
+    words.resize(tile_words(width, height), 1);
     gpu.device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("primary ray tiles"),
-            contents: bytemuck::cast_slice(&vec![PRIMARY_TILE_WALK; words]),
+            contents: bytemuck::cast_slice(&words),
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_DST
                 | wgpu::BufferUsages::COPY_SRC,
@@ -431,8 +441,7 @@ impl TracePass {
             &targets.raster_albedo,
         ]
         .map(|t| t.create_view(&Default::default()));
-        let tiles_bytes =
-            tile_count(targets.width, targets.height) * u64::from(PRIMARY_TILE_WORDS) * 4;
+        let tiles_bytes = tile_words(targets.width, targets.height) as u64 * 4;
         if self.tiles.size() != tiles_bytes {
             self.tiles = walking_tiles(gpu, targets.width, targets.height);
             self.written_tiles.clear();
