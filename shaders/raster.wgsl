@@ -79,7 +79,7 @@ fn shade_vertex(position: vec3<f32>, normal: vec3<f32>, instance: u32) -> VsOut 
     out.ids = g.ids;
     let material = g.ids.y;
     out.base_shininess = vec4<f32>(load_material(material).base_color, load_material(material).shininess);
-    out.specular = vec4<f32>(load_material(material).specular_color, load_material(material).specular_threshold);
+    out.specular = vec4<f32>(load_material(material).specular_color, load_material(material).highlight_cos);
     out.rim = vec4<f32>(load_material(material).rim_color, load_material(material).rim_threshold);
     out.model_bands = vec2<u32>(load_material(material).model, load_material(material).band_count);
     // Only the thresholds the scene's materials fill (lib/shading.wgsl).
@@ -137,7 +137,7 @@ fn flat_material(in: VsOut) -> GpuMaterial {
     m.base_color = in.base_shininess.xyz;
     m.shininess = in.base_shininess.w;
     m.specular_color = in.specular.xyz;
-    m.specular_threshold = in.specular.w;
+    m.highlight_cos = in.specular.w;
     m.rim_color = in.rim.xyz;
     m.rim_threshold = in.rim.w;
     m.model = in.model_bands.x;

@@ -98,7 +98,7 @@ fn twins_match_wgsl_layouts() {
             base_color,
             shininess,
             specular_color,
-            specular_threshold,
+            highlight_cos,
             outline_color,
             outline_width_px,
             rim_color,

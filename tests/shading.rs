@@ -123,6 +123,83 @@ fn toon_sphere_shows_n_bands_with_edges_where_n_dot_l_crosses_thresholds() {
     }
 }
 
+/// The toon highlight: a black toon sphere with a white specular colour,
+/// seen head-on, under one directional light from upper right and behind
+/// the camera, shows white exactly where (N.H)^shininess exceeds the
+/// material's specular_threshold (and N.L > 0), that is where N.H exceeds
+/// the threshold's shininess-th root: 0.5^(1/32) = 0.9786 and
+/// 0.2^(1/4) = 0.6687 here. N and H are computed per pixel centre from the
+/// analytic sphere and the eye. Pixels whose N.H lies within 0.0025 of the
+/// root are not judged: that is about one pixel's change of N.H at these
+/// edges, which covers the raster pass's tessellated normals; the
+/// highlight must also cover a fair part of the sphere, so the check has
+/// pixels on both sides of the edge.
+#[test]
+fn toon_highlight_shows_where_n_dot_h_to_the_shininess_passes_the_threshold() {
+    let gpu = gpu();
+    for (threshold, shininess, mode) in [(0.5f32, 32.0f32), (0.2, 4.0)]
+        .into_iter()
+        .flat_map(|(t, s)| RenderMode::ALL.map(|m| (t, s, m)))
+    {
+        let ron = format!(
+            r#"(version: 1,
+                camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 160, height: 160),
+                ambient: (0.0, 0.0, 0.0), background: (0.0, 0.0, 1.0),
+                lights: [Directional(direction: (-0.3, -0.2, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+                materials: {{ "m": (base_color: (0.0, 0.0, 0.0), specular_color: (1.0, 1.0, 1.0), shininess: {shininess},
+                    model: Toon(bands: 2, specular_threshold: {threshold}), outline_width_px: 0.0) }},
+                shapes: {{ "ball": Sphere(radius: 1.0) }},
+                instances: [(shape: "ball", material: "m")],
+            )"#
+        );
+        let scene = scene(&ron);
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        let settings = RenderSettings {
+            mode,
+            ..pixel_centre_settings(&scene)
+        };
+        let (img, ids) = render(&gpu, scene.clone(), settings);
+        let label = format!(
+            "threshold {threshold}, shininess {shininess}, {} mode",
+            mode.name()
+        );
+        let root = f64::from(threshold).powf(1.0 / f64::from(shininess));
+        let l = Vec3::new(0.3, 0.2, 1.0).normalize();
+        let eye = scene.camera.eye;
+        let (mut lit, mut judged) = (0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                if ids[(y * w + x) as usize] == 0 {
+                    continue;
+                }
+                let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let Some(p) = ray_sphere(&scene, centre, Vec3::ZERO, 1.0) else {
+                    continue;
+                };
+                let n = p.normalize();
+                let hv = (l + (eye - p).normalize()).normalize();
+                let n_dot_h = f64::from(n.dot(hv));
+                if (n_dot_h - root).abs() < 0.0025 {
+                    continue;
+                }
+                let want = n.dot(l) > 0.0 && n_dot_h > root;
+                let rgb = rgb_at(&img, w, x, y);
+                let white = rgb[1] > 128;
+                assert_eq!(
+                    white, want,
+                    "{label}: pixel ({x}, {y}) {rgb:?}, N.H {n_dot_h:.5} against {root:.5}"
+                );
+                judged += 1;
+                lit += usize::from(want);
+            }
+        }
+        assert!(
+            lit > 50 && lit * 4 < judged * 3,
+            "{label}: {lit} of {judged} judged pixels lit"
+        );
+    }
+}
+
 /// A Blinn-Phong sphere under a directional and a point light matches the
 /// formula evaluated on the CPU, in every mode, within 2/255 a channel.
 ///

@@ -120,12 +120,16 @@ fn toon_level(m: GpuMaterial, d: f32) -> f32 {
 fn shade_light(m: GpuMaterial, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, radiance: vec3<f32>) -> vec3<f32> {
     let n_dot_l = dot(n, l);
     let h = normalize(l + v);
-    let spec = select(0.0, pow(max(dot(n, h), 0.0), m.shininess), n_dot_l > 0.0);
     if is_toon(m) {
         let diffuse = toon_level(m, max(n_dot_l, 0.0));
-        let highlight = select(0.0, 1.0, spec > m.specular_threshold);
+        // (N.H)^shininess > specular_threshold, tested as N.H > its
+        // shininess-th root (pow is monotonic on N.H >= 0): a pow per
+        // pixel and light costs the CPU driver about a tenth of the
+        // default scene's raster pass (docs/performance-history.md).
+        let highlight = select(0.0, 1.0, n_dot_l > 0.0 && dot(n, h) > m.highlight_cos);
         return (m.base_color * diffuse + m.specular_color * highlight) * radiance;
     }
+    let spec = select(0.0, pow(max(dot(n, h), 0.0), m.shininess), n_dot_l > 0.0);
     return (m.base_color * max(n_dot_l, 0.0) + m.specular_color * spec) * radiance;
 }
 

@@ -53,8 +53,11 @@ struct GpuMaterial {
     base_color: vec3<f32>,
     shininess: f32,
     specular_color: vec3<f32>,
-    // Toon: (N.H)^shininess above this is the hard highlight.
-    specular_threshold: f32,
+    // Toon: the hard highlight where N.H exceeds this (and N.L > 0): the
+    // material's specular_threshold^(1 / shininess), so that the test
+    // (N.H)^shininess > specular_threshold needs no pow per pixel
+    // (src/render/scene_buffers.rs, material_to_gpu).
+    highlight_cos: f32,
     outline_color: vec3<f32>,
     outline_width_px: f32,
     rim_color: vec3<f32>,

@@ -71,7 +71,7 @@ pub struct GpuMaterial {
     pub base_color: [f32; 3],
     pub shininess: f32,
     pub specular_color: [f32; 3],
-    pub specular_threshold: f32,
+    pub highlight_cos: f32,
     pub outline_color: [f32; 3],
     pub outline_width_px: f32,
     pub rim_color: [f32; 3],

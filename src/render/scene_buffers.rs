@@ -335,7 +335,7 @@ pub fn material_to_gpu(m: &Material, textures: &SceneTextures) -> GpuMaterial {
         base_color: m.base_color.to_array(),
         shininess: m.shininess,
         specular_color: m.specular_color.to_array(),
-        specular_threshold: 0.5,
+        highlight_cos: 1.0,
         outline_color: m.outline_color.to_array(),
         outline_width_px: m.outline_width_px,
         rim_color: [0.0; 3],
@@ -369,7 +369,10 @@ pub fn material_to_gpu(m: &Material, textures: &SceneTextures) -> GpuMaterial {
     if let ShadingModel::Toon(toon) = &m.model {
         g.model = SHADING_TOON;
         g.band_count = toon.bands().min(MAX_TOON_BANDS);
-        g.specular_threshold = toon.specular_threshold;
+        // The highlight test (N.H)^s > t as N.H > t^(1/s) (s > 0 and t in
+        // [0, 1], as validated), rooted in f64.
+        g.highlight_cos =
+            (f64::from(toon.specular_threshold)).powf(1.0 / f64::from(m.shininess)) as f32;
         for (i, t) in toon
             .thresholds
             .iter()
