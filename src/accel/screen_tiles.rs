@@ -15,6 +15,8 @@
 //! The tiles depend on the camera, so they are made for every sample, on
 //! the CPU; scenes with more than [`MAX_TILED_INSTANCES`] instances walk.
 
+use std::ops::RangeInclusive;
+
 use glam::{Mat4, Vec2};
 
 use crate::accel::bvh::Aabb;
@@ -52,22 +54,12 @@ pub fn primary_tiles(
     size: (u32, u32),
     tile_px: u32,
 ) -> Vec<u32> {
-    let tiles = (
-        size.0.div_ceil(tile_px) as usize,
-        size.1.div_ceil(tile_px) as usize,
-    );
+    let tiles = tile_grid(size, tile_px);
     let words = PRIMARY_TILE_WORDS as usize;
     let mut out = vec![0u32; tiles.0 * tiles.1 * words];
-    let eye = clip_from_world.inverse().project_point3(glam::Vec3::ZERO);
-    for (k, b) in bounds.iter().enumerate().filter(|&(k, _)| seen(k)) {
-        let Some((lo, hi)) = pixel_rect(&grown_box(b, eye), clip_from_world, size) else {
-            continue;
-        };
-        let first = |v: f32, n: usize| ((v / tile_px as f32).floor().max(0.0) as usize).min(n - 1);
-        let (x0, x1) = (first(lo.x, tiles.0), first(hi.x, tiles.0));
-        let (y0, y1) = (first(lo.y, tiles.1), first(hi.y, tiles.1));
-        for ty in y0..=y1 {
-            for tx in x0..=x1 {
+    for (k, xs, ys) in touched_tiles(bounds, seen, clip_from_world, size, tile_px, 0) {
+        for ty in ys {
+            for tx in xs.clone() {
                 let record = &mut out[(ty * tiles.0 + tx) * words..][..words];
                 if record[0] == PRIMARY_TILE_WALK {
                     continue;
@@ -82,6 +74,42 @@ pub fn primary_tiles(
         }
     }
     out
+}
+
+/// The tiles of `tile_px` over `size`: across and down.
+fn tile_grid(size: (u32, u32), tile_px: u32) -> (usize, usize) {
+    (
+        size.0.div_ceil(tile_px) as usize,
+        size.1.div_ceil(tile_px) as usize,
+    )
+}
+
+/// For each box k of `bounds` with `pick(k)` that may show on the image
+/// (grown by [`BOX_PAD_REL`], projected by `clip_from_world`: [`pixel_rect`]),
+/// k and the tiles, across and down, that its rectangle grown by
+/// `reach_px` touches.
+fn touched_tiles<'a>(
+    bounds: &'a [Aabb],
+    pick: impl Fn(usize) -> bool + 'a,
+    clip_from_world: Mat4,
+    size: (u32, u32),
+    tile_px: u32,
+    reach_px: u32,
+) -> impl Iterator<Item = (usize, RangeInclusive<usize>, RangeInclusive<usize>)> + 'a {
+    let tiles = tile_grid(size, tile_px);
+    let eye = clip_from_world.inverse().project_point3(glam::Vec3::ZERO);
+    let reach = reach_px as f32;
+    let tile = move |v: f32, n: usize| ((v / tile_px as f32).floor().max(0.0) as usize).min(n - 1);
+    bounds
+        .iter()
+        .enumerate()
+        .filter(move |&(k, _)| pick(k))
+        .filter_map(move |(k, b)| {
+            let (lo, hi) = pixel_rect(&grown_box(b, eye), clip_from_world, size)?;
+            let xs = tile(lo.x - reach, tiles.0)..=tile(hi.x + reach, tiles.0);
+            let ys = tile(lo.y - reach, tiles.1)..=tile(hi.y + reach, tiles.1);
+            Some((k, xs, ys))
+        })
 }
 
 /// Per tile of `tile_px` over `size`, row by row: 1 where an instance k
@@ -103,22 +131,11 @@ pub fn reached_tiles(
     tile_px: u32,
     reach_px: u32,
 ) -> Vec<u32> {
-    let tiles = (
-        size.0.div_ceil(tile_px) as usize,
-        size.1.div_ceil(tile_px) as usize,
-    );
+    let tiles = tile_grid(size, tile_px);
     let mut out = vec![0u32; tiles.0 * tiles.1];
-    let eye = clip_from_world.inverse().project_point3(glam::Vec3::ZERO);
-    for (_, b) in bounds.iter().enumerate().filter(|&(k, _)| pick(k)) {
-        let Some((lo, hi)) = pixel_rect(&grown_box(b, eye), clip_from_world, size) else {
-            continue;
-        };
-        let reach = reach_px as f32;
-        let tile = |v: f32, n: usize| ((v / tile_px as f32).floor().max(0.0) as usize).min(n - 1);
-        let (x0, x1) = (tile(lo.x - reach, tiles.0), tile(hi.x + reach, tiles.0));
-        let (y0, y1) = (tile(lo.y - reach, tiles.1), tile(hi.y + reach, tiles.1));
-        for ty in y0..=y1 {
-            out[ty * tiles.0 + x0..=ty * tiles.0 + x1].fill(1);
+    for (_, xs, ys) in touched_tiles(bounds, pick, clip_from_world, size, tile_px, reach_px) {
+        for ty in ys {
+            out[ty * tiles.0 + xs.start()..=ty * tiles.0 + xs.end()].fill(1);
         }
     }
     out
