@@ -54,9 +54,9 @@ struct GpuMaterial {
     shininess: f32,
     specular_color: vec3<f32>,
     // Toon: the hard highlight where N.H exceeds this (and N.L > 0): the
-    // material's specular_threshold^(1 / shininess), so that the test
-    // (N.H)^shininess > specular_threshold needs no pow per pixel
-    // (src/render/scene_buffers.rs, material_to_gpu).
+    // material's specular_threshold^(1 / shininess), rounded down to an
+    // f32, so that the test (N.H)^shininess > specular_threshold needs no
+    // pow per pixel (src/render/scene_buffers.rs, highlight_cos).
     highlight_cos: f32,
     outline_color: vec3<f32>,
     outline_width_px: f32,

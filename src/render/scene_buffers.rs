@@ -369,10 +369,7 @@ pub fn material_to_gpu(m: &Material, textures: &SceneTextures) -> GpuMaterial {
     if let ShadingModel::Toon(toon) = &m.model {
         g.model = SHADING_TOON;
         g.band_count = toon.bands().min(MAX_TOON_BANDS);
-        // The highlight test (N.H)^s > t as N.H > t^(1/s) (s > 0 and t in
-        // [0, 1], as validated), rooted in f64.
-        g.highlight_cos =
-            (f64::from(toon.specular_threshold)).powf(1.0 / f64::from(m.shininess)) as f32;
+        g.highlight_cos = highlight_cos(toon.specular_threshold, m.shininess);
         for (i, t) in toon
             .thresholds
             .iter()
@@ -387,6 +384,21 @@ pub fn material_to_gpu(m: &Material, textures: &SceneTextures) -> GpuMaterial {
         }
     }
     g
+}
+
+/// The toon highlight's test (N.H)^s > t as N.H > c (s > 0 and t in
+/// [0, 1], as validated; pow is increasing on N.H >= 0): c is the root
+/// t^(1/s), taken in f64 and rounded down to an f32, so that for every
+/// f32 N.H, N.H > c exactly where N.H > t^(1/s) (no f32 lies between the
+/// root and the next f32 above c). t = 0 lights every N.H > 0.
+pub fn highlight_cos(threshold: f32, shininess: f32) -> f32 {
+    let root = f64::from(threshold).powf(1.0 / f64::from(shininess));
+    let c = root as f32;
+    if f64::from(c) > root {
+        c.next_down()
+    } else {
+        c
+    }
 }
 
 /// The GPU form of a light.
@@ -882,6 +894,35 @@ mod tests {
         let message = check_instance_count(1 << 24).unwrap_err().to_string();
         assert!(message.contains("16777216 instances"), "{message}");
         assert!(message.contains("at most 16777215"), "{message}");
+    }
+
+    /// The highlight's bound c is the largest f32 not above the root
+    /// t^(1/s): every f32 N.H above c passes (N.H)^s > t in exact
+    /// arithmetic, and c itself does not. Over thresholds and shininesses
+    /// across their ranges, including a root that rounds to 1.0 (t =
+    /// 0.99999, s = 1024) and t = 0.
+    #[test]
+    fn the_highlight_bound_is_the_root_rounded_down() {
+        for t in [0.0f32, 1e-6, 0.2, 0.5, 0.6, 0.9, 0.99999, 1.0] {
+            for s in [1.0f32, 4.0, 20.0, 32.0, 64.0, 1024.0] {
+                let c = highlight_cos(t, s);
+                let root = f64::from(t).powf(1.0 / f64::from(s));
+                assert!(f64::from(c) <= root, "t {t}, s {s}: {c} above {root}");
+                assert!(
+                    f64::from(c.next_up()) > root,
+                    "t {t}, s {s}: {c} is not the largest f32 below {root}"
+                );
+                // In the test's own terms, on the f32 N.H on either side.
+                let pow = |x: f32| f64::from(x).powf(f64::from(s));
+                assert!(pow(c) <= f64::from(t) * (1.0 + 1e-12), "t {t}, s {s}");
+                // (At t = 0 the f32 above 0 raised to s underflows f64.)
+                if c < 1.0 && t > 0.0 {
+                    assert!(pow(c.next_up()) > f64::from(t), "t {t}, s {s}");
+                }
+            }
+        }
+        assert_eq!(highlight_cos(0.99999, 1024.0), 1.0f32.next_down());
+        assert_eq!(highlight_cos(0.0, 32.0), 0.0);
     }
 
     fn shading_of(materials: &str, lights: &str) -> [(&'static str, f64); 3] {
