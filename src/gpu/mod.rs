@@ -15,6 +15,18 @@ pub mod uniform_tables;
 
 pub use context::{list_adapters, pick_adapter, AdapterChoice, AdapterSummary, Gpu};
 
+/// Writes `words` at the start of `buffer` unless `written` (what the
+/// buffer was last given) already holds them, and remembers them: for
+/// tables made on the CPU for every sample (the primary tiles, the
+/// outline source tiles) that rarely change from one sample to the next.
+pub fn write_if_changed(gpu: &Gpu, buffer: &wgpu::Buffer, written: &mut Vec<u32>, words: Vec<u32>) {
+    if words != *written {
+        gpu.queue
+            .write_buffer(buffer, 0, bytemuck::cast_slice(&words));
+        *written = words;
+    }
+}
+
 /// What can go wrong on the GPU side.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {

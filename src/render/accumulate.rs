@@ -144,7 +144,7 @@ pub struct AccumulatePass {
     tile_list: Option<wgpu::Buffer>,
     /// Per tile, 0 where the marks may skip it unread
     /// ([`AccumulatePass::write_source_tiles`]), as many as the smaller
-    /// tiles need; and what it holds (empty: 1 everywhere, as made).
+    /// tiles need (1 everywhere, as made); and what was last written.
     source_tiles: Option<wgpu::Buffer>,
     written_sources: Vec<u32>,
     /// The kernels that have run ([`AccumulatePass::note_run`]).
@@ -375,24 +375,12 @@ impl AccumulatePass {
     }
 
     /// Uploads the sample's source tiles (`accel::screen_tiles::
-    /// reached_tiles`, for the tile edge the sample uses), or 1 for every
-    /// tile with `None`; nothing where the buffer already holds them.
-    pub fn write_source_tiles(&mut self, gpu: &Gpu, sources: Option<Vec<u32>>) {
-        let Some(buffer) = &self.source_tiles else {
-            return;
-        };
-        let sources = sources.unwrap_or_default();
-        if sources == self.written_sources {
-            return;
+    /// reached_tiles`, one word per tile of the edge the sample uses);
+    /// nothing where the buffer already holds them.
+    pub fn write_source_tiles(&mut self, gpu: &Gpu, sources: Vec<u32>) {
+        if let Some(buffer) = &self.source_tiles {
+            crate::gpu::write_if_changed(gpu, buffer, &mut self.written_sources, sources);
         }
-        let words = if sources.is_empty() {
-            vec![1u32; (buffer.size() / 4) as usize]
-        } else {
-            sources.clone()
-        };
-        gpu.queue
-            .write_buffer(buffer, 0, bytemuck::cast_slice(&words));
-        self.written_sources = sources;
     }
 
     /// The tile edge for a `width` x `height` image whose widest outline

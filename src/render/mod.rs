@@ -715,40 +715,47 @@ impl Renderer {
             size,
             TRACE_WORKGROUP,
         );
-        let meshes = crate::accel::screen_tiles::reached_tiles(
-            &accel.world_bounds,
-            |i| hybrid && mesh(i),
-            clip_from_world,
-            size,
-            TRACE_WORKGROUP,
-            0,
-        );
-        tiles.extend(meshes);
+        let count = tiles.len() / crate::gpu::twins::PRIMARY_TILE_WORDS as usize;
+        if hybrid {
+            let meshes = crate::accel::screen_tiles::reached_tiles(
+                &accel.world_bounds,
+                mesh,
+                clip_from_world,
+                size,
+                TRACE_WORKGROUP,
+                0,
+            );
+            tiles.extend(meshes);
+        } else {
+            tiles.resize(tiles.len() + count, 0);
+        }
         tiles
     }
 
     /// Per accumulate tile of `tile_px`, whether an instance whose outline
     /// reaches other pixels may show within the outline radius of it
     /// (`accel::screen_tiles::reached_tiles`), in the sample whose
-    /// projection is `clip_from_world`; `None` (every tile may) in scenes
-    /// of more than `MAX_TILED_INSTANCES` instances, where projecting
-    /// them all for each sample would cost more than the reads it saves.
-    fn source_tiles_seen_by(&self, clip_from_world: glam::Mat4, tile_px: u32) -> Option<Vec<u32>> {
+    /// projection is `clip_from_world`; 1 everywhere in scenes of more
+    /// than `MAX_TILED_INSTANCES` instances, where projecting them all for
+    /// each sample would cost more than the reads it saves.
+    fn source_tiles_seen_by(&self, clip_from_world: glam::Mat4, tile_px: u32) -> Vec<u32> {
         let accel = &self.buffers.accel;
+        let size = (self.settings.width, self.settings.height);
         if accel.world_bounds.len() > crate::accel::screen_tiles::MAX_TILED_INSTANCES {
-            return None;
+            let tiles = size.0.div_ceil(tile_px) * size.1.div_ceil(tile_px);
+            return vec![1; tiles as usize];
         }
         let scene = &self.scene;
         let order = &self.buffers.instance_order;
         let reach = max_outline_px(scene).floor() as u32;
-        Some(crate::accel::screen_tiles::reached_tiles(
+        crate::accel::screen_tiles::reached_tiles(
             &accel.world_bounds,
             |k| scene.materials[scene.instances[order[k]].material].outline_width_px >= 1.0,
             clip_from_world,
-            (self.settings.width, self.settings.height),
+            size,
             tile_px,
             reach,
-        ))
+        )
     }
 
     /// Renders one more sample into the accumulator (one dispatch per pass,

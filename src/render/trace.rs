@@ -517,11 +517,7 @@ impl TracePass {
     /// (`accel::screen_tiles::primary_tiles` over the image the pass was
     /// prepared for), where they differ from what the buffer holds.
     pub fn write_tiles(&mut self, gpu: &Gpu, tiles: Vec<u32>) {
-        if tiles != self.written_tiles {
-            gpu.queue
-                .write_buffer(&self.tiles, 0, bytemuck::cast_slice(&tiles));
-            self.written_tiles = tiles;
-        }
+        crate::gpu::write_if_changed(gpu, &self.tiles, &mut self.written_tiles, tiles);
     }
 
     /// Whether the pass traces through the driver's structures.
