@@ -3,9 +3,11 @@
 // accum[p].w counts the samples, so resolve divides by it.
 //
 // Two kernels, dispatched one after the other in one compute pass:
-// `main` over every tile, which accumulates the pixels of the tiles no
-// outline can reach (shaders/outline_tiles.wgsl's marks, 0) and leaves the
-// others; and `outlined`, dispatched indirectly over the marked tiles
+// `main` over every tile, which accumulates the pixels of the tiles
+// shaders/outline_tiles.wgsl left unmarked (0) and leaves the others
+// (OUTLINE_MARK_SEARCH: `outlined`'s; OUTLINE_MARK_TRACED: no outline
+// reaches them, and the trace pass already added their colour,
+// shaders/trace.wgsl); and `outlined`, dispatched indirectly over the marked tiles
 // alone (the list outline_tiles.wgsl appends to), which loads the tile
 // and searches for outlines (where an image has more tiles than one
 // dispatch may count, over every tile instead, the unmarked ones stopping
@@ -23,14 +25,18 @@
 #include "lib/gbuffer.wgsl"
 #include "lib/outline.wgsl"
 @group(1) @binding(4) var<storage, read_write> accum: array<vec4<f32>>;
-// From shaders/outline_tiles.wgsl, run just before: 1 where a pixel of
-// the tile may take an outline (an outlined object in reach, and the tile
-// not provably the smooth inside of one object); `main` leaves those tiles
-// to `outlined`.
+#include "lib/accum.wgsl"
+// From shaders/outline_tiles.wgsl, run just before: OUTLINE_MARK_SEARCH
+// where a pixel of the tile may take an outline (an outlined object in
+// reach, and the tile not provably the smooth inside of one object), which
+// `main` leaves to `outlined`; OUTLINE_MARK_TRACED where the trace pass
+// accumulated the tile, which `main` leaves alone; else 0.
 @group(1) @binding(5) var<storage, read> tile_marks: array<u32>;
 // The marked tiles' indices (row by row numbering), in no particular
-// order: `outlined`'s workgroup k takes tile_list[k]. Written by
-// outline_tiles.wgsl, which also counts them into the indirect dispatch.
+// order: `outlined`'s workgroup k takes tile_list[k]. Where the trace pass
+// accumulates, the tiles left to `main` follow from the end: `main`'s
+// workgroup k takes tile_list[tiles - 1 - k]. Written by
+// outline_tiles.wgsl, which also counts them into the indirect dispatches.
 @group(1) @binding(9) var<storage, read> tile_list: array<u32>;
 // `outlined`'s indirect dispatch (x, y, z workgroups) and, in word 3, how
 // it finds its tile: OUTLINE_TILES_LISTED, workgroup k takes tile_list[k];
@@ -38,7 +44,9 @@
 // once (images with more tiles than one dispatch's x may count: over
 // about 4096 x 4096 pixels, since 8 px tiles are used only where they can
 // be listed; or where tests turn the list off: src/render/accumulate.rs).
-@group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, 4>;
+// Words 4-6: `main`'s indirect dispatch over the tiles left to it, used
+// where the trace pass accumulates and the list is read.
+@group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, 8>;
 const OUTLINE_TILES_LISTED: u32 = 1u;
 
 // The tile's edge in pixels, one invocation each: 8 or 16, set per
@@ -242,32 +250,30 @@ fn outline_radius() -> i32 {
     return i32(floor(min(frame.max_outline_px, f32(MAX_OUTLINE_RADIUS))));
 }
 
-// Adds colour c to pixel p's sum (or starts it on the first sample).
-fn accumulate(p: vec2<u32>, c: vec3<f32>) {
-    let i = p.y * frame.size_px.x + p.x;
-    if frame.sample_index == 0u {
-        accum[i] = vec4<f32>(c, 1.0);
-    } else {
-        accum[i] += vec4<f32>(c, 1.0);
-    }
-}
-
-// Every tile: the pixels of tiles no outline can reach (all of them when
-// the scene has no outline 1 px or wider: r = 0, and no marks were made).
+// The pixels of the unmarked tiles (all of them when the scene has no
+// outline 1 px or wider: r = 0, and no marks were made; the renderer then
+// runs this pass only where the trace pass did not already accumulate
+// every pixel). Over the listed ones where the trace pass accumulates (and
+// the list is read), else over every tile.
 @compute @workgroup_size(ACCUMULATE_TILE, ACCUMULATE_TILE)
 fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(workgroup_id) wg: vec3<u32>,
 ) {
-    let tiles_x = (frame.size_px.x + ACCUMULATE_TILE - 1u) / ACCUMULATE_TILE;
-    // The whole workgroup agrees, so the CPU driver skips the rest at once.
-    if outline_radius() > 0 && tile_marks[wg.y * tiles_x + wg.x] != 0u {
+    let tiles = (frame.size_px + vec2<u32>(ACCUMULATE_TILE - 1u)) / ACCUMULATE_TILE;
+    let outlines = outline_radius() > 0;
+    var tile = wg.y * tiles.x + wg.x;
+    if outlines && frame.trace_accumulates != 0u && outline_dispatch[3] == OUTLINE_TILES_LISTED {
+        tile = tile_list[tiles.x * tiles.y - 1u - wg.x];
+    } else if outlines && tile_marks[tile] != 0u {
+        // The whole workgroup agrees, so the CPU driver skips the rest at once.
         return;
     }
+    let gid = vec2<u32>(tile % tiles.x, tile / tiles.x) * ACCUMULATE_TILE + lid.xy;
     if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
         return;
     }
-    accumulate(gid.xy, gbuffer_color(vec2<i32>(gid.xy)));
+    add_sample(gid, gbuffer_color(vec2<i32>(gid)));
 }
 
 // The marked tiles, one workgroup each: the tile and its halo loaded into
@@ -286,7 +292,7 @@ fn outlined(
         tile = tile_list[wg.x];
     } else {
         tile = wg.y * tiles_x + wg.x;
-        if tile_marks[tile] == 0u {
+        if tile_marks[tile] != OUTLINE_MARK_SEARCH {
             return;
         }
     }
@@ -321,5 +327,5 @@ fn outlined(
         }
         c = mix(c, o.rgb, o.a);
     }
-    accumulate(gid, c);
+    add_sample(gid, c);
 }

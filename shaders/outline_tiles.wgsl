@@ -1,10 +1,15 @@
 // Outline tiles: before the accumulate pass, one invocation per accumulate
 // workgroup tile decides whether any pixel of the tile can take an outline,
-// and writes 1 (search) or 0 (skip); each marked tile's index is also
+// and writes OUTLINE_MARK_SEARCH (search) or 0 (skip; OUTLINE_MARK_TRACED
+// where way 1 below holds and the trace pass accumulated the tile
+// already, frame.trace_accumulates); each marked tile's index is also
 // appended to `tile_list`, counted in the x workgroup count of
 // `outline_dispatch` (zeroed before this pass), so the accumulate pass's
 // `outlined` kernel runs one workgroup per marked tile and its `main`
-// kernel skips them. One invocation walks a whole tile, so this kernel
+// kernel skips them. Where the trace pass accumulates, the tiles left to
+// `main` (marked 0) are listed too, from the list's end, and counted in
+// words 4-6, `main`'s own indirect dispatch: `main` then runs over those
+// alone. One invocation walks a whole tile, so this kernel
 // needs no workgroup memory and no barrier (on the CPU driver a barrier
 // costs about as much as the loads it orders).
 //
@@ -40,21 +45,28 @@
 // (lib/gbuffer.wgsl).
 #include "lib/gbuffer.wgsl"
 #include "lib/outline.wgsl"
-// One word per accumulate workgroup, row by row: 1 where the tile may
-// take an outline.
+// One word per accumulate workgroup, row by row: OUTLINE_MARK_SEARCH
+// where the tile may take an outline, OUTLINE_MARK_TRACED where the trace
+// pass accumulated it (source_tiles 0, with frame.trace_accumulates), else 0.
 @group(1) @binding(4) var<storage, read_write> tile_marks: array<u32>;
 // The accumulate pass's indirect dispatch of `outlined`: workgroup counts
 // x, y, z (y and z stay 1); x counts the marked tiles. (Word 3 is the
-// accumulate pass's: whether it reads the list.)
-@group(1) @binding(5) var<storage, read_write> outline_dispatch: array<atomic<u32>, 4>;
-// The marked tiles' indices, the first x of them written, in no order.
+// accumulate pass's: whether it reads the list.) Words 4-6: `main`'s, x
+// counting the tiles left to it where the trace pass accumulates.
+@group(1) @binding(5) var<storage, read_write> outline_dispatch: array<atomic<u32>, 8>;
+// The marked tiles' indices, the first x of them written, in no order;
+// where the trace pass accumulates, the tiles left to `main` from the end
+// (the last word first).
 @group(1) @binding(9) var<storage, read_write> tile_list: array<u32>;
 // One word per tile, made on the CPU for each sample
 // (accel::screen_tiles::reached_tiles): 0 where no texel of the tile or
 // its halo can be a source, from the projected boxes of the instances
 // whose outline reaches other pixels (1 everywhere where it is not made:
 // scenes of many instances). Such a tile is skipped without reading the
-// G-buffer: way 1 below, proven before the texels are read.
+// G-buffer: way 1 below, proven before the texels are read. Where the
+// trace pass accumulates (frame.trace_accumulates), it has already added
+// the colour of exactly these tiles' pixels (the CPU gives it the same
+// flags: Renderer::tiles_seen_by).
 @group(1) @binding(10) var<storage, read> source_tiles: array<u32>;
 
 // The accumulate tile's edge in pixels, as the accumulate pipelines have
@@ -75,7 +87,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     if source_tiles[gid.x] == 0u {
-        tile_marks[gid.x] = 0u;
+        if frame.trace_accumulates != 0u {
+            tile_marks[gid.x] = OUTLINE_MARK_TRACED;
+        } else {
+            tile_marks[gid.x] = 0u;
+        }
         return;
     }
     // The same radius and halo as the accumulate pass's.
@@ -137,8 +153,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     let marked = any_source && !quiet;
-    tile_marks[gid.x] = select(0u, 1u, marked);
+    tile_marks[gid.x] = select(0u, OUTLINE_MARK_SEARCH, marked);
     if marked {
         tile_list[atomicAdd(&outline_dispatch[0], 1u)] = gid.x;
+    } else if frame.trace_accumulates != 0u {
+        tile_list[tiles.x * tiles.y - 1u - atomicAdd(&outline_dispatch[4], 1u)] = gid.x;
     }
 }

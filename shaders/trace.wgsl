@@ -36,13 +36,22 @@
 @group(1) @binding(9) var<storage, read> shadow_cells: array<u32>;
 // Per 8 x 8 tile of pixels (one workgroup), the instances its primary rays
 // can meet, or PRIMARY_TILE_WALK (src/accel/screen_tiles.rs): made on the
-// CPU for each sample's camera. After the records, one word per tile: in
-// hybrid mode, 0 where no rasterized mesh can show (its raster G-buffer
-// is the background there, unread).
+// CPU for each sample's camera. After the records, one word per tile:
+// TILE_MESH_MAY_SHOW in hybrid mode where a rasterized mesh may show (its
+// raster G-buffer is the background elsewhere, unread), and
+// TILE_TRACE_ACCUMULATES where no outline can reach the tile.
 @group(1) @binding(10) var<storage, read> primary_tiles: array<u32>;
 // shadow_cells again, as vec4s: the instances' bounding spheres
 // (may_meet_sphere), each loaded at once rather than word by word.
 @group(1) @binding(11) var<storage, read> shadow_spheres: array<vec4<f32>>;
+// The float accumulator (shaders/accumulate.wgsl's): in the tiles no
+// outline can reach, this pass adds each pixel's colour itself, as the
+// accumulate pass would (lib/accum.wgsl), instead of storing it in
+// out_color for that pass to copy there. The outline marks flag those
+// tiles OUTLINE_MARK_TRACED (frame.trace_accumulates), and the accumulate
+// pass leaves them alone.
+@group(1) @binding(12) var<storage, read_write> accum: array<vec4<f32>>;
+#include "lib/accum.wgsl"
 
 // TRACE_WORKGROUP, MAX_INVOCATION_STEPS (loop iterations one pixel may
 // spend on traversal, all rays together: well under lavapipe's silent cut
@@ -451,12 +460,15 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     let hybrid = frame.mode == RENDER_MODE_HYBRID;
     var hit: TraceHit;
     var raster_may_show = true;
+    var accumulates = false;
     if PRIMARY_TILES {
         // The workgroup's tile: every invocation of it takes the same path.
         let tiles = (frame.size_px + vec2<u32>(TRACE_WORKGROUP - 1u)) / TRACE_WORKGROUP;
         let tiles_x = tiles.x;
         let r = (wg.y * tiles_x + wg.x) * PRIMARY_TILE_WORDS;
-        raster_may_show = primary_tiles[tiles.x * tiles.y * PRIMARY_TILE_WORDS + wg.y * tiles_x + wg.x] != 0u;
+        let flags = primary_tiles[tiles.x * tiles.y * PRIMARY_TILE_WORDS + wg.y * tiles_x + wg.x];
+        raster_may_show = (flags & TILE_MESH_MAY_SHOW) != 0u;
+        accumulates = (flags & TILE_TRACE_ACCUMULATES) != 0u;
         let listed = primary_tiles[r] != PRIMARY_TILE_WALK;
         if listed {
             hit = trace_listed(r, o, d, hybrid);
@@ -559,7 +571,14 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         atomicAdd(&stats[0], 1u);
     }
     let k = traced_index(gid.xy, frame.size_px.x);
-    out_color[k] = vec2<u32>(half_bits_toward_zero(colour.r) | half_bits_toward_zero(colour.g) << 16u, half_bits_toward_zero(colour.b) | half_bits_toward_zero(1.0) << 16u);
+    // The colour as the G-buffer holds it, so the sums are the same
+    // whichever pass adds it.
+    let halves = pack_color_halves(colour);
+    if accumulates {
+        add_sample(gid.xy, unpack_color_halves(halves));
+    } else {
+        out_color[k] = halves;
+    }
     out_normal_depth[k] = vec4<f32>(primary_normal, primary_depth);
     out_id[k] = primary_id;
 }

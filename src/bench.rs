@@ -261,11 +261,16 @@ fn pass_ms(stats: &FrameStats, name: &str) -> f64 {
         .map_or(f64::NAN, |(_, ms)| *ms)
 }
 
-/// The accumulate pass with its tile marks (the "outline_tiles" span, run
-/// only where the scene has outlines): the tables' "outline + accumulate".
+/// The accumulate pass with its tile marks: the tables' "outline +
+/// accumulate". Each span runs only where it is needed (the marks where
+/// the scene has outlines, the accumulate pass unless the trace pass added
+/// every pixel itself), so the spans a frame lacks count 0.
 fn outline_accumulate_ms(stats: &FrameStats) -> f64 {
-    let tiles = pass_ms(stats, "outline_tiles");
-    pass_ms(stats, "accumulate") + if tiles.is_nan() { 0.0 } else { tiles }
+    ["outline_tiles", "accumulate"]
+        .map(|name| pass_ms(stats, name))
+        .iter()
+        .filter(|ms| !ms.is_nan())
+        .sum()
 }
 
 /// `base`'s first instance repeated on a square grid of `count`, camera

@@ -82,7 +82,7 @@ fn twins_match_wgsl_layouts() {
             mode,
             max_bounces,
             ray_epsilon,
-            _pad
+            trace_accumulates
         }
     );
     check_twin!(

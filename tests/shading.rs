@@ -703,6 +703,139 @@ fn outlined_sphere(w: u32, h: u32, outline_px: f32) -> String {
     )
 }
 
+/// In hybrid and raytrace mode the trace pass adds the colour of the 8 x 8
+/// tiles that no outline can reach to the accumulator itself (the outline
+/// marks' source tiles are 0 there, or no outline is 1 px wide), the
+/// outline marks flag the accumulate tiles holding them
+/// OUTLINE_MARK_TRACED, and the accumulate pass leaves those alone (its
+/// `main` runs over a list of the others). Both passes add the same
+/// half-rounded colour with the same add, one per sample, so the sums
+/// after 3 samples (jittered: sample indices 1 and 2 add to a sum) must be
+/// equal bit for bit to those of the accumulate pass doing every pixel: a
+/// tile added by both passes counts 6 samples, one added by neither 0 or
+/// a stale sum. Cases: the default scene in hybrid and raytrace mode at
+/// 164 x 92 (8 px accumulate tiles, partial ones at the edges); the
+/// depth-of-field and motion scene, which has no outline 1 px wide, so
+/// that the trace pass adds every pixel and no accumulate pass runs; and
+/// a sphere with 5 px outlines, whose 16 px accumulate tiles hold 2 x 2
+/// trace tiles each (390 x 290: partial tiles of both sizes).
+#[test]
+fn the_trace_pass_accumulates_the_tiles_no_outline_reaches_with_the_same_sums() {
+    use celray::gpu::twins::{
+        OUTLINE_MARK_TRACED, PRIMARY_TILE_WORDS, TILE_TRACE_ACCUMULATES, TRACE_WORKGROUP,
+    };
+    let gpu = gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let load = |file: &str| celray::scene::Scene::load(&dir.join(file)).unwrap();
+    let small = |mode| RenderSettings {
+        width: 164,
+        height: 92,
+        spp: 3,
+        mode,
+        ..RenderSettings::default()
+    };
+    // A small sphere right of centre, its 5 px outline magenta.
+    let sphere = scene(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 12.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 30.0, width: 390, height: 290),
+            ambient: (0.2, 0.2, 0.2), background: (0.0, 0.0, 0.0),
+            lights: [Directional(direction: (-0.5, -0.5, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: { "m": (base_color: (0.2, 0.8, 0.2), model: Toon(bands: 3),
+                               outline_color: (1.0, 0.0, 1.0), outline_width_px: 5.0) },
+            shapes: { "ball": Sphere(radius: 1.0) },
+            instances: [(shape: "ball", material: "m", transform: (translate: (2.0, 0.5, 0.0)))],
+        )"#,
+    );
+    let cases = [
+        (
+            "default hybrid",
+            load("default.ron"),
+            small(RenderMode::Hybrid),
+            Some(8),
+        ),
+        (
+            "default raytrace",
+            load("default.ron"),
+            small(RenderMode::Raytrace),
+            Some(8),
+        ),
+        (
+            "dof + motion",
+            load("anchor_dof_motion.ron"),
+            small(RenderMode::Raytrace),
+            None,
+        ),
+        (
+            "5 px outlines",
+            sphere.clone(),
+            RenderSettings {
+                spp: 3,
+                mode: RenderMode::Raytrace,
+                ..pixel_centre_settings(&sphere)
+            },
+            Some(16),
+        ),
+    ];
+    // Per case, the accumulate tiles' edge where some outline is 1 px wide.
+    for (name, scene, settings, outline_tile) in cases {
+        let (w, h) = (settings.width, settings.height);
+        let mut sums = Vec::new();
+        for on in [true, false] {
+            gpu.set_trace_accumulates(on);
+            let r = rendered(&gpu, scene.clone(), settings.clone());
+            gpu.set_trace_accumulates(true);
+            let bits: Vec<[u32; 4]> = (r.read_accumulator(&gpu).unwrap().iter())
+                .map(|a| a.map(f32::to_bits))
+                .collect();
+            assert!(
+                bits.iter().all(|a| f32::from_bits(a[3]) == 3.0),
+                "{name} (trace accumulates: {on}): a pixel does not count 3 samples"
+            );
+            sums.push(bits);
+            // Which trace tiles the kernel read as its own to add.
+            let words = r.read_primary_tiles(&gpu).unwrap();
+            let count = (w.div_ceil(TRACE_WORKGROUP) * h.div_ceil(TRACE_WORKGROUP)) as usize;
+            assert_eq!(words.len(), count * (PRIMARY_TILE_WORDS as usize + 1));
+            let flags = &words[words.len() - count..];
+            let traced = |t: usize| flags[t] & TILE_TRACE_ACCUMULATES != 0;
+            let added = (0..count).filter(|&t| traced(t)).count();
+            if !on {
+                assert_eq!(added, 0, "{name}: switched off, yet the trace pass adds");
+            } else if outline_tile.is_none() {
+                assert_eq!(added, count, "{name}: no outline, yet some tile is left");
+            } else {
+                assert!(
+                    added > 0 && added < count,
+                    "{name}: the trace pass adds {added} of {count} tiles"
+                );
+                // The marks agree with the tile words: an accumulate tile
+                // is marked traced exactly where its trace tiles are.
+                let marks = r.read_outline_tile_words(&gpu).unwrap();
+                let tile = r.outline_tile_px();
+                assert_eq!(Some(tile), outline_tile, "{name}: the accumulate tiles");
+                let per = tile / TRACE_WORKGROUP;
+                let (tiles_x, trace_x) = (w.div_ceil(tile), w.div_ceil(TRACE_WORKGROUP));
+                for t in 0..count as u32 {
+                    let (x, y) = (t % trace_x, t / trace_x);
+                    let mark = marks[((y / per) * tiles_x + x / per) as usize];
+                    assert_eq!(
+                        mark == OUTLINE_MARK_TRACED,
+                        traced(t as usize),
+                        "{name}: trace tile ({x}, {y}) and its {tile} px mark {mark}"
+                    );
+                }
+            }
+        }
+        let differ = (0..sums[0].len())
+            .filter(|&i| sums[0][i] != sums[1][i])
+            .count();
+        assert_eq!(
+            differ, 0,
+            "{name}: {differ} pixels sum otherwise when the trace pass adds"
+        );
+    }
+}
+
 /// The accumulate pass searches for outlines in a kernel of its own, over
 /// the list of marked tiles (one indirect dispatch); where an image has
 /// more tiles than one dispatch can count (over about 4096 x 4096 pixels

@@ -41,3 +41,17 @@ fn half_bits_toward_zero(x: f32) -> u32 {
     let significand = (a & 0x7fffffu) | 0x800000u;
     return sign | (significand >> (126u - (a >> 23u)));
 }
+
+// A linear colour as the traced G-buffer holds it: four halves (alpha 1),
+// each rounded toward zero (half_bits_toward_zero).
+fn pack_color_halves(c: vec3<f32>) -> vec2<u32> {
+    return vec2<u32>(
+        half_bits_toward_zero(c.r) | half_bits_toward_zero(c.g) << 16u,
+        half_bits_toward_zero(c.b) | half_bits_toward_zero(1.0) << 16u,
+    );
+}
+
+// The colour pack_color_halves packed (the halves widen exactly).
+fn unpack_color_halves(h: vec2<u32>) -> vec3<f32> {
+    return vec3<f32>(unpack2x16float(h.x), unpack2x16float(h.y).x);
+}

@@ -9,6 +9,8 @@
 // Includes: after `frame` (group 1, binding 0). Group 1 bindings 1-3 and
 // 6-8 are these; a kernel binds those it reads.
 
+#include "lib/color.wgsl"
+
 override TRACED_GBUFFER: bool = false;
 
 @group(1) @binding(1) var color_tex: texture_2d<f32>;
@@ -25,8 +27,7 @@ fn traced_at(q: vec2<i32>) -> u32 {
 // Linear colour (a half-float texel: its halves widen exactly either way).
 fn gbuffer_color(q: vec2<i32>) -> vec3<f32> {
     if TRACED_GBUFFER {
-        let c = traced_color[traced_at(q)];
-        return vec3<f32>(unpack2x16float(c.x), unpack2x16float(c.y).x);
+        return unpack_color_halves(traced_color[traced_at(q)]);
     }
     return textureLoad(color_tex, q, 0).rgb;
 }

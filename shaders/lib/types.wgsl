@@ -31,7 +31,11 @@ struct FrameUniforms {
     max_bounces: u32,
     // Offset of secondary ray origins along the normal (scene-scaled).
     ray_epsilon: f32,
-    _pad: u32,
+    // 1 where the trace pass adds the colour of the tiles its tile words
+    // flag (TILE_TRACE_ACCUMULATES: no outline reaches them) to the
+    // accumulator itself, so the outline marks flag them
+    // OUTLINE_MARK_TRACED and the accumulate pass leaves them alone.
+    trace_accumulates: u32,
 }
 
 const RENDER_MODE_RASTER: u32 = 0u;

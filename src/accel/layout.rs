@@ -67,6 +67,12 @@ pub const PRIMARY_TILE_MAX: u32 = PRIMARY_TILE_WORDS - 1;
 /// The header of a tile whose primary rays walk the BVH: more instances
 /// than [`PRIMARY_TILE_MAX`] may be seen there.
 pub const PRIMARY_TILE_WALK: u32 = u32::MAX;
+/// Bit of a tile's word after the records: in hybrid mode, a rasterized
+/// mesh may show in the tile, so its primary rays read the raster G-buffer.
+pub const TILE_MESH_MAY_SHOW: u32 = 1;
+/// Bit of a tile's word after the records: no outline can reach the tile,
+/// so the trace pass adds its pixels' colour to the accumulator itself.
+pub const TILE_TRACE_ACCUMULATES: u32 = 2;
 
 /// Which shadow rays of one light can meet something at all
 /// ([`crate::accel::shadow_cull`]): the trace kernel casts a ray only where

@@ -123,6 +123,11 @@ pub struct Gpu {
     /// listed marked tiles (`render::accumulate`); tests turn it off to
     /// check the dispatch over every tile against it.
     outline_tile_list: AtomicBool,
+    /// Whether renderers made from now on let the trace pass add the
+    /// colour of the tiles no outline reaches to the accumulator itself
+    /// (`Renderer::render_sample`); tests turn it off to check it against
+    /// the accumulate pass doing it all.
+    trace_accumulates: AtomicBool,
     /// Whether scenes uploaded from now on give shadow rays occluder lists
     /// (`accel::shadow_cull`); tests turn it off to check the lists
     /// against the BVH walk.
@@ -288,6 +293,7 @@ impl Gpu {
             shader_overrides: Mutex::new(None),
             uniform_tables: AtomicBool::new(true),
             outline_tile_list: AtomicBool::new(true),
+            trace_accumulates: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
             primary_tiles: AtomicBool::new(true),
             edge_tolerance: AtomicBool::new(edge_tolerance),
@@ -317,6 +323,18 @@ impl Gpu {
 
     pub fn outline_tile_list(&self) -> bool {
         self.outline_tile_list.load(Ordering::Relaxed)
+    }
+
+    /// Whether renderers made from now on let the trace pass accumulate
+    /// the pixels of the tiles no outline can reach, where it reads primary
+    /// tiles (on by default; off: the accumulate pass adds every pixel, the
+    /// same sums, for tests and benchmarks).
+    pub fn set_trace_accumulates(&self, on: bool) {
+        self.trace_accumulates.store(on, Ordering::Relaxed);
+    }
+
+    pub fn trace_accumulates(&self) -> bool {
+        self.trace_accumulates.load(Ordering::Relaxed)
     }
 
     /// Whether scenes uploaded from now on give each instance's shadow rays

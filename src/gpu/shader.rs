@@ -60,6 +60,10 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("PRIMARY_TILE_WORDS", twins::PRIMARY_TILE_WORDS),
         ("INSTANCE_ID_BITS", twins::INSTANCE_ID_BITS),
         ("PRIMARY_TILE_WALK", twins::PRIMARY_TILE_WALK),
+        ("TILE_MESH_MAY_SHOW", twins::TILE_MESH_MAY_SHOW),
+        ("TILE_TRACE_ACCUMULATES", twins::TILE_TRACE_ACCUMULATES),
+        ("OUTLINE_MARK_SEARCH", twins::OUTLINE_MARK_SEARCH),
+        ("OUTLINE_MARK_TRACED", twins::OUTLINE_MARK_TRACED),
         ("RAY_BATCH_WORKGROUP", twins::RAY_BATCH_WORKGROUP),
         ("MAX_ACCUMULATE_TILE", twins::MAX_ACCUMULATE_TILE),
         ("OUTLINE_TILES_WORKGROUP", twins::OUTLINE_TILES_WORKGROUP),
@@ -164,6 +168,10 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     (
         "lib/gbuffer.wgsl",
         include_str!("../../shaders/lib/gbuffer.wgsl"),
+    ),
+    (
+        "lib/accum.wgsl",
+        include_str!("../../shaders/lib/accum.wgsl"),
     ),
     ("raster.wgsl", include_str!("../../shaders/raster.wgsl")),
     (

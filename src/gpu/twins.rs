@@ -32,6 +32,13 @@ pub const WIDE_OUTLINE_RADIUS: u32 = 4;
 /// Workgroup size of the outline tile marks (shaders/outline_tiles.wgsl):
 /// one invocation per accumulate tile.
 pub const OUTLINE_TILES_WORKGROUP: u32 = 64;
+/// An outline tile mark: a pixel of the tile may take an outline, so the
+/// accumulate pass's `outlined` kernel searches it (0: `main` accumulates
+/// it).
+pub const OUTLINE_MARK_SEARCH: u32 = 1;
+/// An outline tile mark: no outline reaches the tile, and the trace pass
+/// has already added its colour to the accumulator (`main` leaves it).
+pub const OUTLINE_MARK_TRACED: u32 = 2;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -51,7 +58,9 @@ pub struct FrameUniforms {
     pub mode: u32,
     pub max_bounces: u32,
     pub ray_epsilon: f32,
-    pub _pad: u32,
+    /// 1 where the trace pass adds the colour of the tiles its tile words
+    /// flag [`TILE_TRACE_ACCUMULATES`] to the accumulator itself.
+    pub trace_accumulates: u32,
 }
 
 pub const RENDER_MODE_RASTER: u32 = 0;

@@ -68,6 +68,10 @@ pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 11] = [
 /// Word 3 of the outline dispatch buffer where the `outlined` kernel reads
 /// its tiles from the list (`shaders/accumulate.wgsl`).
 const OUTLINE_TILES_LISTED: u32 = 1;
+/// Byte offset in the outline dispatch buffer of `main`'s indirect
+/// dispatch (words 4-6), over the tiles the marks left to it where the
+/// trace pass accumulates.
+const MAIN_DISPATCH_OFFSET: u64 = 16;
 
 /// The edge (pixels) of the accumulate pass's tiles, one workgroup each,
 /// for a `width` x `height` image whose widest outline is
@@ -321,7 +325,16 @@ impl AccumulatePass {
             // run); y = z = 1.
             let listed = gpu.outline_tile_list()
                 && tiles_x * tiles_y <= gpu.device.limits().max_compute_workgroups_per_dimension;
-            let start = [0, 1, 1, if listed { OUTLINE_TILES_LISTED } else { 0 }];
+            let start = [
+                0,
+                1,
+                1,
+                if listed { OUTLINE_TILES_LISTED } else { 0 },
+                0,
+                1,
+                1,
+                0,
+            ];
             let outline_dispatch =
                 gpu.device
                     .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -453,8 +466,10 @@ impl AccumulatePass {
             return;
         };
         let edge = edge_index(tile_px);
-        // The list starts empty: x = 0 workgroups (y and z stay 1).
-        encoder.clear_buffer(&groups[edge].outline_dispatch, 0, Some(4));
+        // The lists start empty: x = 0 workgroups (y and z stay 1).
+        let dispatch = &groups[edge].outline_dispatch;
+        encoder.clear_buffer(dispatch, 0, Some(4));
+        encoder.clear_buffer(dispatch, MAIN_DISPATCH_OFFSET, Some(4));
         let (tiles_x, tiles_y) = tiles(targets, tile_px);
         let mut pass = self.begin(encoder, "outline tiles pass", timestamp_writes);
         pass.set_pipeline(&self.tiles_pipelines[edge][usize::from(traced)]);
@@ -462,30 +477,43 @@ impl AccumulatePass {
         pass.dispatch_workgroups((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1, 1);
     }
 
-    /// The accumulation over tiles of `tile_px`: `main` over every tile,
-    /// then, where the scene has `outlines` (and
-    /// [`AccumulatePass::encode_tiles`] marked and listed this sample's
-    /// tiles), `outlined` over the listed tiles (over every tile where
-    /// there are too many to list, or where [`Gpu::set_outline_tile_list`]
-    /// turned the list off).
+    /// The accumulation over tiles of `kernels.tile_px`: `main` over every
+    /// tile the trace pass did not accumulate, then, where the scene has
+    /// outlines (and [`AccumulatePass::encode_tiles`] marked and listed
+    /// this sample's tiles), `outlined` over the listed tiles (over every
+    /// tile where there are too many to list, or where
+    /// [`Gpu::set_outline_tile_list`] turned the list off). Where
+    /// `trace_accumulates` (the trace pass added the colour of the tiles no
+    /// outline reaches) and the list is read, `main` runs over the tiles
+    /// the marks left to it alone; else over every tile, skipping the
+    /// marked ones.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
-        traced: bool,
-        outlines: bool,
-        tile_px: u32,
+        kernels: Kernels,
+        trace_accumulates: bool,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let Some(groups) = &self.groups else {
             return;
         };
+        let Kernels {
+            tile_px,
+            traced,
+            outlines,
+        } = kernels;
         let edge = edge_index(tile_px);
         let (tiles_x, tiles_y) = tiles(targets, tile_px);
         let mut pass = self.begin(encoder, "accumulate pass", timestamp_writes);
         pass.set_pipeline(&self.pipelines[edge][usize::from(traced)]);
         pass.set_bind_group(PASS_GROUP, &groups[edge].bind_group, &[]);
-        pass.dispatch_workgroups(tiles_x, tiles_y, 1);
+        if outlines && trace_accumulates && groups[edge].listed {
+            let dispatch = &groups[edge].outline_dispatch;
+            pass.dispatch_workgroups_indirect(dispatch, MAIN_DISPATCH_OFFSET);
+        } else {
+            pass.dispatch_workgroups(tiles_x, tiles_y, 1);
+        }
         if outlines {
             pass.set_pipeline(&self.outline_pipelines[edge][usize::from(traced)]);
             if groups[edge].listed {

@@ -34,8 +34,8 @@ use wgpu::util::DeviceExt;
 
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::twins::{
-    FrameUniforms, ReprojectUniforms, SHAPE_MESH, TEMPORAL_REJECT_CLIP, TEMPORAL_REJECT_NONE,
-    TRACE_WORKGROUP,
+    FrameUniforms, ReprojectUniforms, OUTLINE_MARK_SEARCH, SHAPE_MESH, TEMPORAL_REJECT_CLIP,
+    TEMPORAL_REJECT_NONE, TILE_MESH_MAY_SHOW, TILE_TRACE_ACCUMULATES, TRACE_WORKGROUP,
 };
 use crate::gpu::{readback, Gpu, GpuError};
 use crate::sampling::{Sample, SampleSchedule};
@@ -182,6 +182,10 @@ pub struct Renderer {
     /// [`Renderer::use_tiles_of_size`] set, in place of the one the image's
     /// size and outlines choose.
     tile_px: Option<u32>,
+    /// Whether the trace pass may add the colour of the tiles no outline
+    /// reaches to the accumulator itself, where it reads primary tiles
+    /// ([`Gpu::set_trace_accumulates`] when the renderer was made).
+    trace_may_accumulate: bool,
 }
 
 /// The driver's structures for `scene` where `settings.accel` asks for them
@@ -252,6 +256,7 @@ impl Renderer {
             reproject: None,
             temporal: TemporalState::default(),
             tile_px: None,
+            trace_may_accumulate: gpu.trace_accumulates(),
         };
         renderer.bind(gpu)?;
         Ok(renderer)
@@ -687,23 +692,45 @@ impl Renderer {
             mode: self.primary_mode().to_gpu(),
             max_bounces: s.max_bounces,
             ray_epsilon: scene_radius * 1e-4,
-            _pad: 0,
+            // Set by render_sample, which knows whether the trace pass
+            // reads its tiles.
+            trace_accumulates: 0,
         }
     }
 
     /// Sample `k`'s primary-ray tiles (`accel::screen_tiles`) for primary
     /// mode `mode`, as the trace pass reads them: the records (hybrid
     /// mode's primary rays skip the meshes, which it rasterizes), then one
-    /// word per tile, in hybrid mode 1 where a mesh may show (0 in
-    /// raytrace mode, where it is not read).
+    /// word per tile: in hybrid mode `TILE_MESH_MAY_SHOW` where a mesh may
+    /// show (never in raytrace mode, where it is not read), and
+    /// `TILE_TRACE_ACCUMULATES` where no outline can reach the tile (every
+    /// tile without outlines 1 px or wider), whose pixels the trace pass
+    /// adds to the accumulator itself.
     pub fn primary_tiles(&self, k: u32, mode: RenderMode) -> Vec<u32> {
         let camera = self.camera_for(&self.sample_schedule().sample(k));
-        self.tiles_seen_by(camera.clip_from_world, mode)
+        let kernels = self.accumulate_kernels(&self.scene, &self.settings);
+        let sources = kernels
+            .outlines
+            .then(|| self.source_tiles_seen_by(camera.clip_from_world, kernels.tile_px));
+        self.tiles_seen_by(
+            camera.clip_from_world,
+            mode,
+            sources.as_deref(),
+            kernels.tile_px,
+        )
     }
 
     /// The primary-ray tiles of the sample whose projection is
-    /// `clip_from_world` ([`Renderer::primary_tiles`]).
-    fn tiles_seen_by(&self, clip_from_world: glam::Mat4, mode: RenderMode) -> Vec<u32> {
+    /// `clip_from_world` ([`Renderer::primary_tiles`]), given that
+    /// sample's outline source tiles of `tile_px` on a side (`None`: no
+    /// outline reaches other pixels).
+    fn tiles_seen_by(
+        &self,
+        clip_from_world: glam::Mat4,
+        mode: RenderMode,
+        sources: Option<&[u32]>,
+        tile_px: u32,
+    ) -> Vec<u32> {
         let accel = &self.buffers.accel;
         let hybrid = mode == RenderMode::Hybrid;
         let mesh = |i: usize| accel.shapes[accel.instances[i].2 as usize].kind == SHAPE_MESH;
@@ -725,9 +752,24 @@ impl Renderer {
                 TRACE_WORKGROUP,
                 0,
             );
-            tiles.extend(meshes);
+            tiles.extend(meshes.iter().map(|&m| m * TILE_MESH_MAY_SHOW));
         } else {
             tiles.resize(tiles.len() + count, 0);
+        }
+        if !self.trace_may_accumulate {
+            return tiles;
+        }
+        // An accumulate tile holds whole trace tiles (8 or 16 px against 8).
+        debug_assert!(tile_px.is_multiple_of(TRACE_WORKGROUP));
+        let trace_x = size.0.div_ceil(TRACE_WORKGROUP) as usize;
+        let source_x = size.0.div_ceil(tile_px) as usize;
+        let per = (tile_px / TRACE_WORKGROUP) as usize;
+        let flags = tiles.len() - count;
+        for (t, word) in tiles[flags..].iter_mut().enumerate() {
+            let (x, y) = (t % trace_x, t / trace_x);
+            if sources.is_none_or(|s| s[(y / per) * source_x + x / per] == 0) {
+                *word |= TILE_TRACE_ACCUMULATES;
+            }
         }
         tiles
     }
@@ -775,14 +817,28 @@ impl Renderer {
         } else {
             self.samples
         };
-        let uniforms = self.frame_uniforms(k);
+        let mut uniforms = self.frame_uniforms(k);
         let draws = self.raster_draws(k);
         let mode = self.primary_mode();
-        if mode != RenderMode::Raster && self.trace.reads_tiles() {
-            // The sample's own projection, as the uniforms carry it.
-            let clip_from_world = glam::Mat4::from_cols_array_2d(&uniforms.clip_from_world);
-            let tiles = self.tiles_seen_by(clip_from_world, mode);
+        // An outline under 1 px reaches no other pixel (search radius 0).
+        let kernels = self.accumulate_kernels(&self.scene, &self.settings);
+        self.accumulate.note_run(kernels);
+        let (outlines, tile_px) = (kernels.outlines, kernels.tile_px);
+        // The sample's own projection, as the uniforms carry it.
+        let clip_from_world = glam::Mat4::from_cols_array_2d(&uniforms.clip_from_world);
+        let sources = outlines.then(|| self.source_tiles_seen_by(clip_from_world, tile_px));
+        // Where the trace pass reads tiles, it adds the colour of those no
+        // outline reaches to the accumulator itself (every tile without
+        // outlines): the accumulate pass would only copy it there.
+        let reads_tiles = mode != RenderMode::Raster && self.trace.reads_tiles();
+        let trace_accumulates = reads_tiles && self.trace_may_accumulate;
+        if reads_tiles {
+            let tiles = self.tiles_seen_by(clip_from_world, mode, sources.as_deref(), tile_px);
             self.trace.write_tiles(gpu, tiles);
+        }
+        uniforms.trace_accumulates = u32::from(trace_accumulates);
+        if let Some(sources) = sources {
+            self.accumulate.write_source_tiles(gpu, sources);
         }
         if let Some((pass, prev)) = &moving {
             pass.write_uniforms(gpu, &self.reproject_uniforms(prev));
@@ -809,15 +865,6 @@ impl Renderer {
             t.last_timed = t.timer.begin();
             t.last_timed
         });
-        // An outline under 1 px reaches no other pixel (search radius 0).
-        let kernels = self.accumulate_kernels(&self.scene, &self.settings);
-        self.accumulate.note_run(kernels);
-        let (outlines, tile_px) = (kernels.outlines, kernels.tile_px);
-        if outlines {
-            let clip_from_world = glam::Mat4::from_cols_array_2d(&uniforms.clip_from_world);
-            let sources = self.source_tiles_seen_by(clip_from_world, tile_px);
-            self.accumulate.write_source_tiles(gpu, sources);
-        }
         let mut timer = self.timer.as_mut().filter(|_| timed);
         let traced = mode != RenderMode::Raster;
         if let Some((pass, _)) = &moving {
@@ -863,16 +910,18 @@ impl Renderer {
                     .and_then(|t| t.timer.compute_writes(t.outline_tiles)),
             );
         }
-        self.accumulate.encode(
-            &mut encoder,
-            &self.targets,
-            traced,
-            outlines,
-            tile_px,
-            timer
-                .as_mut()
-                .and_then(|t| t.timer.compute_writes(t.accumulate)),
-        );
+        // Without outlines, the trace pass accumulated every pixel.
+        if outlines || !trace_accumulates {
+            self.accumulate.encode(
+                &mut encoder,
+                &self.targets,
+                kernels,
+                trace_accumulates,
+                timer
+                    .as_mut()
+                    .and_then(|t| t.timer.compute_writes(t.accumulate)),
+            );
+        }
         if let Some((pass, _)) = &moving {
             pass.encode(
                 &mut encoder,
@@ -1085,6 +1134,18 @@ impl Renderer {
     /// row), whether the last sample's outline search ran there (1) or was
     /// skipped (0). For tests.
     pub fn read_outline_tile_marks(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
+        let marks = self.read_outline_tile_words(gpu)?;
+        Ok(marks
+            .into_iter()
+            .map(|m| u32::from(m == OUTLINE_MARK_SEARCH))
+            .collect())
+    }
+
+    /// The outline marks as the accumulate pass read them
+    /// (`OUTLINE_MARK_SEARCH`, `OUTLINE_MARK_TRACED` where the trace pass
+    /// accumulated the tile, or 0), per tile as
+    /// [`Renderer::read_outline_tile_marks`]. For tests.
+    pub fn read_outline_tile_words(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
         self.accumulate
             .read_tile_marks(gpu, &self.targets, self.outline_tile_px())
     }

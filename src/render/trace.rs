@@ -19,7 +19,9 @@ use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::shader::Traversal;
-use crate::gpu::twins::{PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, SHAPE_MESH, TRACE_WORKGROUP};
+use crate::gpu::twins::{
+    PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, SHAPE_MESH, TILE_MESH_MAY_SHOW, TRACE_WORKGROUP,
+};
 use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
@@ -34,7 +36,7 @@ const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterab
 
 /// Group 1 of the trace pass, binding by binding as `shaders/trace.wgsl`
 /// declares it.
-pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 12] = [
+pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 13] = [
     uniform_entry(0, wgpu::ShaderStages::COMPUTE), // frame
     read_write_storage_entry(1),                   // stats
     texture_entry(2, FLOAT),                       // raster_normal_depth
@@ -47,6 +49,7 @@ pub const PASS_LAYOUT: [wgpu::BindGroupLayoutEntry; 12] = [
     read_only_storage_entry(9, wgpu::ShaderStages::COMPUTE), // shadow_cells
     read_only_storage_entry(10, wgpu::ShaderStages::COMPUTE), // primary_tiles
     read_only_storage_entry(11, wgpu::ShaderStages::COMPUTE), // shadow_spheres
+    read_write_storage_entry(12),                  // accum
 ];
 
 pub struct TracePass {
@@ -235,19 +238,20 @@ fn tile_count(width: u32, height: u32) -> u64 {
 }
 
 /// The words of the tile buffer of a `width` x `height` image: per tile a
-/// record of `PRIMARY_TILE_WORDS`, then per tile whether a rasterized
-/// mesh may show there (`Renderer::primary_tiles`).
+/// record of `PRIMARY_TILE_WORDS`, then per tile its flags: whether a
+/// rasterized mesh may show there, and whether the pass accumulates its
+/// pixels (`Renderer::primary_tiles`).
 fn tile_words(width: u32, height: u32) -> usize {
     tile_count(width, height) as usize * (PRIMARY_TILE_WORDS as usize + 1)
 }
 
 /// A tile buffer for the image whose every tile walks the BVH and may
-/// show a mesh: what a variant with `PRIMARY_TILES` reads before the first
-/// tiles are written.
+/// show a mesh, and whose colour the accumulate pass adds: what a variant
+/// with `PRIMARY_TILES` reads before the first tiles are written.
 fn walking_tiles(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
     let records = tile_count(width, height) as usize * PRIMARY_TILE_WORDS as usize;
     let mut words = vec![PRIMARY_TILE_WALK; records];
-    words.resize(tile_words(width, height), 1);
+    words.resize(tile_words(width, height), TILE_MESH_MAY_SHOW);
     gpu.device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("primary ray tiles"),
@@ -485,6 +489,10 @@ impl TracePass {
             wgpu::BindGroupEntry {
                 binding: 11,
                 resource: scene.shadow_cells.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 12,
+                resource: targets.accum.as_entire_binding(),
             },
         ]);
         let target_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
