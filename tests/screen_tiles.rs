@@ -1,7 +1,9 @@
 //! Which instances each screen tile's primary rays can meet
 //! (`accel::screen_tiles`), against the CPU tracer: no GPU needed.
 use celray::accel::bvh::Aabb;
-use celray::accel::screen_tiles::{primary_tiles, reached_tiles, tile_list};
+use celray::accel::screen_tiles::{
+    primary_tiles, reached_tiles, tile_list, ScreenBound, TILE_PAD_PX,
+};
 use celray::accel::SceneAccel;
 use celray::gpu::twins::{PRIMARY_TILE_MAX, PRIMARY_TILE_WORDS};
 use celray::render::camera::{depth_range, sample_camera};
@@ -66,6 +68,36 @@ fn kernel_ray(clip_from_world: Mat4, size: (u32, u32), x: u32, y: u32) -> (Vec3,
 /// projections (pixel (106, 42) loses the CSG solid's hit).
 #[test]
 fn a_primary_ray_meets_only_its_tiles_instances() {
+    let (_, accel) = scene();
+    primary_rays_meet_only_their_tiles_instances(&accel.world_bounds);
+}
+
+/// The same with the footprints the renderer uses, where spheres and the
+/// CSG solid also have a bounding sphere (a tile is kept only where its
+/// cone of rays meets it): still every hit in its tile's list, and the
+/// lists hold fewer entries than with the boxes alone.
+#[test]
+fn a_primary_ray_meets_only_its_tiles_instances_with_bounding_spheres() {
+    let (_, accel) = scene();
+    assert!(
+        accel
+            .footprints
+            .iter()
+            .filter(|f| f.sphere.is_some())
+            .count()
+            >= 3
+    );
+    let boxes = primary_rays_meet_only_their_tiles_instances(&accel.world_bounds);
+    let spheres = primary_rays_meet_only_their_tiles_instances(&accel.footprints);
+    assert!(
+        spheres < boxes,
+        "{spheres} entries, against {boxes} with boxes alone"
+    );
+}
+
+/// The checks of [`a_primary_ray_meets_only_its_tiles_instances`] with
+/// `bounds`; returns how many entries the 8 px tiles' lists hold.
+fn primary_rays_meet_only_their_tiles_instances(bounds: &[impl ScreenBound]) -> usize {
     let (mut scene, accel) = scene();
     scene.camera.aperture_radius = 0.15;
     scene.camera.focus_distance = Some(5.0);
@@ -82,13 +114,7 @@ fn a_primary_ray_meets_only_its_tiles_instances() {
         let lens = Vec2::from_angle(i as f32 * 1.7) * (i % 2) as f32;
         let depth = depth_range(&scene.camera, scene.bounds());
         let cam = sample_camera(&scene.camera, size, Vec2::new(sx, sy), lens, depth);
-        let tiles = primary_tiles(
-            &accel.world_bounds,
-            |_| true,
-            cam.clip_from_world,
-            size,
-            tile,
-        );
+        let tiles = primary_tiles(bounds, |_| true, cam.clip_from_world, size, tile);
         for t in 0..tiles.len() / PRIMARY_TILE_WORDS as usize {
             if tile == 1 {
                 break;
@@ -125,6 +151,7 @@ fn a_primary_ray_meets_only_its_tiles_instances() {
     );
     let mean = entries as f64 / listed_tiles as f64;
     assert!(mean < 4.0, "{mean:.2} instances a listed tile");
+    entries
 }
 
 /// A tile that may see more than PRIMARY_TILE_MAX instances walks,
@@ -174,7 +201,29 @@ fn crowded_tiles_walk_and_boxes_off_the_image_are_left_out() {
 /// third of the tiles stay 0.
 #[test]
 fn a_source_pixel_flags_every_tile_within_its_reach() {
+    let (_, accel) = scene();
+    source_pixels_flag_every_tile_within_their_reach(&accel.world_bounds);
+}
+
+/// The same with the footprints the renderer uses (bounding spheres for
+/// the balls and the CSG solid): still every tile within reach of a
+/// source pixel, and fewer flags than with the boxes alone.
+#[test]
+fn a_source_pixel_flags_every_tile_within_its_reach_with_bounding_spheres() {
+    let (_, accel) = scene();
+    let boxes = source_pixels_flag_every_tile_within_their_reach(&accel.world_bounds);
+    let spheres = source_pixels_flag_every_tile_within_their_reach(&accel.footprints);
+    assert!(
+        spheres < boxes,
+        "{spheres} flags, against {boxes} with boxes alone"
+    );
+}
+
+/// The checks of [`a_source_pixel_flags_every_tile_within_its_reach`]
+/// with `bounds`; returns how many flags its cases set.
+fn source_pixels_flag_every_tile_within_their_reach(bounds: &[impl ScreenBound]) -> usize {
     let (mut scene, accel) = scene();
+    let mut flagged = 0;
     scene.camera.aperture_radius = 0.15;
     scene.camera.focus_distance = Some(5.0);
     let size = (scene.camera.width, scene.camera.height);
@@ -190,7 +239,7 @@ fn a_source_pixel_flags_every_tile_within_its_reach() {
         let depth = depth_range(&scene.camera, scene.bounds());
         let cam = sample_camera(&scene.camera, size, shift, lens, depth);
         let flags = reached_tiles(
-            &accel.world_bounds,
+            bounds,
             |k| sources.contains(&(k as u32)),
             cam.clip_from_world,
             size,
@@ -232,5 +281,86 @@ fn a_source_pixel_flags_every_tile_within_its_reach() {
             "{unflagged} of {} tiles unflagged ({tile} px, reach {reach})",
             flags.len()
         );
+        flagged += flags.len() - unflagged;
     }
+    flagged
+}
+
+/// A ball filling most of the view's height (the bench's single sphere,
+/// at 640 x 360): its box's rectangle holds half the image again beside
+/// the ball's disk. With its bounding sphere, the flags stay conservative
+/// (every tile within reach of a pixel whose ray meets the ball) and
+/// tight: a flagged tile's cone meets the ball within its half-angle, so
+/// it lies within a tile, the reach and the padding of a pixel that
+/// shows the ball. Here: within tile + reach + TILE_PAD_PX + 1 px (the
+/// grown half-angle bound is 1% wider than the half-diagonal) in x and
+/// in y. The box alone flags tiles three times that far out.
+#[test]
+fn a_balls_bounding_sphere_flags_only_the_tiles_near_its_disk() {
+    let ron = r#"(version: 1,
+        camera: (eye: (0.6283, 0.8377, 1.0472), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 640, height: 360),
+        lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.3, 0.2), model: Toon(bands: 4)) },
+        shapes: { "ball": Sphere(radius: 0.45) },
+        instances: [(shape: "ball", material: "m")],
+    )"#;
+    let scene = Scene::from_ron_str(ron, "test.ron", std::path::Path::new(".")).unwrap();
+    let accel = SceneAccel::build(&scene, &[0]).unwrap();
+    let size = (scene.camera.width, scene.camera.height);
+    let depth = depth_range(&scene.camera, scene.bounds());
+    let cam = sample_camera(&scene.camera, size, Vec2::new(0.3, 0.7), Vec2::ZERO, depth);
+    let hit: Vec<bool> = (0..size.0 * size.1)
+        .map(|i| {
+            let (o, d) = kernel_ray(cam.clip_from_world, size, i % size.0, i / size.0);
+            accel.closest_hit(o, d, 0.0, f32::INFINITY).hit.is_some()
+        })
+        .collect();
+    let (tile, reach) = (8u32, 1u32);
+    let tiles_x = size.0.div_ceil(tile);
+    // The farthest (in x or y) a flagged tile may lie from a ball pixel.
+    let near = tile + reach + TILE_PAD_PX.ceil() as u32 + 1;
+    // Whether some ball pixel lies within `d` px (x and y) of tile t.
+    let within = |t: u32, d: u32| {
+        let (tx, ty) = (t % tiles_x * tile, t / tiles_x * tile);
+        let ys = ty.saturating_sub(d)..(ty + tile + d).min(size.1);
+        let xs = tx.saturating_sub(d)..(tx + tile + d).min(size.0);
+        ys.into_iter()
+            .any(|y| xs.clone().any(|x| hit[(y * size.0 + x) as usize]))
+    };
+    let spheres = reached_tiles(
+        &accel.footprints,
+        |_| true,
+        cam.clip_from_world,
+        size,
+        tile,
+        reach,
+    );
+    for t in 0..spheres.len() as u32 {
+        // Conservative: a ball pixel within reach flags the tile.
+        if within(t, reach) {
+            assert_eq!(spheres[t as usize], 1, "tile {t} has the ball within reach");
+        }
+        // Tight.
+        if spheres[t as usize] == 1 {
+            assert!(
+                within(t, near),
+                "tile {t} is flagged, no ball pixel within {near} px"
+            );
+        }
+    }
+    let boxes = reached_tiles(
+        &accel.world_bounds,
+        |_| true,
+        cam.clip_from_world,
+        size,
+        tile,
+        reach,
+    );
+    let far_out = (0..boxes.len() as u32)
+        .filter(|&t| boxes[t as usize] == 1 && !within(t, 3 * near))
+        .count();
+    assert!(
+        far_out > 100,
+        "the box flags {far_out} tiles far from the ball"
+    );
 }

@@ -27,6 +27,7 @@ use layout::{
     CSG_OP_INTERSECTION, CSG_OP_LEAF, MAX_TRAVERSAL_STEPS, SHAPE_BOX, SHAPE_CONE, SHAPE_CSG,
     SHAPE_CYLINDER, SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE, TRAVERSAL_STACK,
 };
+use screen_tiles::Footprint;
 
 /// Triangles per bottom-level leaf and instances per top-level leaf.
 const MESH_LEAF: usize = 4;
@@ -135,6 +136,10 @@ pub struct SceneAccel {
     /// level's leaf boxes), and whether it moves.
     pub world_bounds: Vec<Aabb>,
     pub moving: Vec<bool>,
+    /// Per GPU instance, what the screen tiles project
+    /// (`screen_tiles::Footprint`): its world box and, for static spheres
+    /// and CSG solids, a world sphere holding it ([`world_sphere`]).
+    pub footprints: Vec<Footprint>,
     /// Postfix programs of the CSG shapes (each ends with CSG_OP_END).
     pub csg_ops: Vec<GpuCsgOp>,
     pub csg_leaves: Vec<GpuCsgLeaf>,
@@ -146,6 +151,38 @@ pub struct SceneAccel {
     /// and its CSG programs).
     pub sizes: PrivateSizes,
     pub build_ms: f64,
+}
+
+/// An upper bound on the square of the largest factor by which `m`
+/// stretches a vector: the largest eigenvalue of mᵀm, bounded by
+/// Gershgorin's circle theorem (its largest absolute row sum; exact for
+/// rotations with uniform scale).
+pub fn squared_stretch_bound(m: glam::Mat3) -> f32 {
+    // Symmetric: its columns are its rows.
+    let gram = m.transpose() * m;
+    [gram.x_axis, gram.y_axis, gram.z_axis]
+        .map(|r| r.abs().element_sum())
+        .into_iter()
+        .fold(0.0, f32::max)
+}
+
+/// A world sphere (centre xyz, radius w) holding an instance of `shape`
+/// placed by `world_from_object`: for spheres their own, for CSG solids
+/// their bounding sphere (`Csg::bounding_sphere`), the radius scaled by
+/// the matrix's largest stretch ([`squared_stretch_bound`]); none for
+/// other shapes.
+pub fn world_sphere(shape: &GpuShape, world_from_object: Mat4) -> Option<glam::Vec4> {
+    let (centre, radius) = match shape.kind {
+        SHAPE_SPHERE => (Vec3::ZERO, shape.params[0]),
+        SHAPE_CSG => (Vec3::from_slice(&shape.params[..3]), shape.params[3]),
+        _ => return None,
+    };
+    let stretch = squared_stretch_bound(glam::Mat3::from_mat4(world_from_object)).sqrt();
+    Some(
+        world_from_object
+            .transform_point3(centre)
+            .extend(radius * stretch),
+    )
 }
 
 /// Builds a mesh's bottom-level BVH, appending its nodes (child indices
@@ -312,9 +349,20 @@ impl SceneAccel {
                 }
             })
             .collect();
-        let moving = instance_order
+        let moving: Vec<bool> = instance_order
             .iter()
             .map(|&i| scene.instances[i].world_from_object_end.is_some())
+            .collect();
+        // A moving instance keeps its box, which covers its motion.
+        let footprints = (0..instances.len())
+            .map(|k| {
+                let (world_from_object, _, shape) = instances[k];
+                let sphere = world_sphere(&shapes[shape as usize], world_from_object);
+                Footprint {
+                    bounds: world_bounds[k],
+                    sphere: sphere.filter(|_| !moving[k]),
+                }
+            })
             .collect();
         let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
         // One stack serves both levels, holding at most one entry per level
@@ -367,6 +415,7 @@ impl SceneAccel {
             instances,
             world_bounds,
             moving,
+            footprints,
             csg_ops,
             triangle_sources,
             csg_leaves,

@@ -14,10 +14,18 @@
 //! hits. A tile where more than [`PRIMARY_TILE_MAX`] may be seen walks.
 //! The tiles depend on the camera, so they are made for every sample, on
 //! the CPU; scenes with more than [`MAX_TILED_INSTANCES`] instances walk.
+//!
+//! A sphere's box projects onto a rectangle well beyond the sphere's own
+//! disk (a third more across, and the rectangle's corners). Where an
+//! instance also has a bounding sphere ([`Footprint`]: static spheres and
+//! CSG solids), a tile inside its rectangle is kept only where the cone
+//! of rays from the eye through the tile (grown as the rectangle is) meets
+//! that sphere: every point the tile's rays can meet on the instance lies
+//! in both.
 
 use std::ops::RangeInclusive;
 
-use glam::{Mat4, Vec2};
+use glam::{DVec3, DVec4, Mat4, Vec2, Vec3, Vec4};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{PRIMARY_TILE_MAX, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS};
@@ -41,14 +49,49 @@ pub const TILE_PAD_PX: f32 = 2.0;
 /// reach more than [`TILE_PAD_PX`] on the image.
 pub const BOX_PAD_REL: f32 = 1e-5;
 
+/// What the tiles know of an instance's extent in the world: a box, and
+/// optionally a sphere holding it too.
+pub trait ScreenBound {
+    /// Its world box (over the whole shutter).
+    fn world_box(&self) -> &Aabb;
+    /// A world sphere (centre xyz, radius w) holding all of it, if any.
+    fn world_sphere(&self) -> Option<Vec4> {
+        None
+    }
+}
+
+impl ScreenBound for Aabb {
+    fn world_box(&self) -> &Aabb {
+        self
+    }
+}
+
+/// An instance's extent as the renderer gives it to the tiles
+/// (`SceneAccel::footprints`): its world box over the whole shutter and,
+/// for static spheres and CSG solids, a world sphere holding it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Footprint {
+    pub bounds: Aabb,
+    pub sphere: Option<Vec4>,
+}
+
+impl ScreenBound for Footprint {
+    fn world_box(&self) -> &Aabb {
+        &self.bounds
+    }
+    fn world_sphere(&self) -> Option<Vec4> {
+        self.sphere
+    }
+}
+
 /// The tiles' records, row by row over `size` in `tile_px` squares,
 /// [`PRIMARY_TILE_WORDS`] words each: the count, then the GPU instance
-/// indices (ascending) whose boxes in `bounds` (per GPU instance, over
+/// indices (ascending) whose extents in `bounds` (per GPU instance, over
 /// the whole shutter) `clip_from_world` may show in the tile; or
 /// [`PRIMARY_TILE_WALK`]. `seen(k)`: instance k can be a primary hit at
 /// all (hybrid mode rasterizes meshes).
 pub fn primary_tiles(
-    bounds: &[Aabb],
+    bounds: &[impl ScreenBound],
     seen: impl Fn(usize) -> bool,
     clip_from_world: Mat4,
     size: (u32, u32),
@@ -57,9 +100,14 @@ pub fn primary_tiles(
     let tiles = tile_grid(size, tile_px);
     let words = PRIMARY_TILE_WORDS as usize;
     let mut out = vec![0u32; tiles.0 * tiles.1 * words];
-    for (k, xs, ys) in touched_tiles(bounds, seen, clip_from_world, size, tile_px, 0) {
+    let cones = TileCones::new(clip_from_world, size, tile_px, 0);
+    for (k, xs, ys, sphere) in touched_tiles(bounds, seen, clip_from_world, size, tile_px, 0) {
+        let sphere = cones.sphere(sphere);
         for ty in ys {
             for tx in xs.clone() {
+                if !cones.meets(&sphere, tx, ty) {
+                    continue;
+                }
                 let record = &mut out[(ty * tiles.0 + tx) * words..][..words];
                 if record[0] == PRIMARY_TILE_WALK {
                     continue;
@@ -86,16 +134,24 @@ fn tile_grid(size: (u32, u32), tile_px: u32) -> (usize, usize) {
 
 /// For each box k of `bounds` with `pick(k)` that may show on the image
 /// (grown by [`BOX_PAD_REL`], projected by `clip_from_world`: [`pixel_rect`]),
-/// k and the tiles, across and down, that its rectangle grown by
-/// `reach_px` touches.
-fn touched_tiles<'a>(
-    bounds: &'a [Aabb],
+/// k, the tiles, across and down, that its rectangle grown by `reach_px`
+/// touches, and its sphere, if any (grown as the box is), which
+/// [`TileCones::meets`] tests those tiles against.
+fn touched_tiles<'a, B: ScreenBound>(
+    bounds: &'a [B],
     pick: impl Fn(usize) -> bool + 'a,
     clip_from_world: Mat4,
     size: (u32, u32),
     tile_px: u32,
     reach_px: u32,
-) -> impl Iterator<Item = (usize, RangeInclusive<usize>, RangeInclusive<usize>)> + 'a {
+) -> impl Iterator<
+    Item = (
+        usize,
+        RangeInclusive<usize>,
+        RangeInclusive<usize>,
+        Option<Vec4>,
+    ),
+> + 'a {
     let tiles = tile_grid(size, tile_px);
     let eye = clip_from_world.inverse().project_point3(glam::Vec3::ZERO);
     let reach = reach_px as f32;
@@ -105,11 +161,112 @@ fn touched_tiles<'a>(
         .enumerate()
         .filter(move |&(k, _)| pick(k))
         .filter_map(move |(k, b)| {
-            let (lo, hi) = pixel_rect(&grown_box(b, eye), clip_from_world, size)?;
+            let (lo, hi) = pixel_rect(&grown_box(b.world_box(), eye), clip_from_world, size)?;
             let xs = tile(lo.x - reach, tiles.0)..=tile(hi.x + reach, tiles.0);
             let ys = tile(lo.y - reach, tiles.1)..=tile(hi.y + reach, tiles.1);
-            Some((k, xs, ys))
+            let sphere = b.world_sphere().map(|s| grown_sphere(s, eye));
+            Some((k, xs, ys, sphere))
         })
+}
+
+/// The cones of rays through the tiles of one sample's image, for testing
+/// bounding spheres against them: each tile's pixel rectangle is grown by
+/// the reach asked for and [`TILE_PAD_PX`], as [`touched_tiles`] grows the
+/// boxes' rectangles.
+///
+/// Every primary ray passes through the centre of projection (the eye; a
+/// point on the lens in a depth-of-field sample) and its pixel's point on
+/// the far plane. A tile's rays lie in the cone from the eye around the
+/// ray through the tile's centre whose half-angle reaches the grown
+/// rectangle's corners. The far plane is one of constant view depth, so
+/// its points are an affine function of the pixel point (up to the f32
+/// matrix's rounding, a relative 1e-5 here), and that half-angle is at
+/// most the rectangle's half-diagonal on the far plane over the plane's
+/// distance from the eye (radial projection onto the sphere of that
+/// radius shortens no path): one bound for every tile, taken 1% wider for
+/// the rounding. So a tile is tested with one direction.
+struct TileCones {
+    /// The eye, then the homogeneous far-plane point of pixel point
+    /// (x, y) (pixel centres at integers, as [`pixel_rect`]) as
+    /// h0 + x hx + y hy; `None` where the projection is not of that kind
+    /// (then every tile may meet every sphere).
+    rays: Option<(DVec3, [DVec4; 3])>,
+    /// A tile's centre pixel point is (t + 0.5) tile_px - 0.5 in x and y.
+    tile_px: f64,
+    /// The bound on every tile's half-angle (radians).
+    half_angle: f64,
+}
+
+/// A bounding sphere as [`TileCones::meets`] tests it: the unit direction
+/// from the eye to its centre, and the cosine of the largest angle a
+/// tile's axis may make with it and still have its cone meet the sphere.
+struct SphereCone {
+    to_centre: DVec3,
+    cos_reach: f64,
+}
+
+impl TileCones {
+    fn new(clip_from_world: Mat4, size: (u32, u32), tile_px: u32, reach_px: u32) -> TileCones {
+        let world_from_clip = clip_from_world.as_dmat4().inverse();
+        let (w, h) = (f64::from(size.0), f64::from(size.1));
+        // The far-plane point of pixel point (x, y): NDC ((x + 0.5) / w * 2
+        // - 1, 1 - (y + 0.5) / h * 2, 1), linear in x and y.
+        let h0 = world_from_clip * DVec4::new(1.0 / w - 1.0, 1.0 - 1.0 / h, 1.0, 1.0);
+        let hx = world_from_clip * DVec4::new(2.0 / w, 0.0, 0.0, 0.0);
+        let hy = world_from_clip * DVec4::new(0.0, -2.0 / h, 0.0, 0.0);
+        // The centre of projection maps to clip x = y = w = 0.
+        let centre = world_from_clip * DVec4::Z;
+        let point = |p: DVec4| p.truncate() / p.w;
+        let [o, x, y, xy] = [h0, h0 + hx, h0 + hy, h0 + w * hx + h * hy];
+        let affine = [x.w, y.w, xy.w]
+            .iter()
+            .all(|&v| (v - o.w).abs() <= 1e-4 * o.w.abs());
+        let eye = point(centre);
+        let rays = (affine && eye.is_finite() && o.w.abs() > 0.0).then_some((eye, [h0, hx, hy]));
+        let span = f64::from(tile_px) - 1.0 + 2.0 * (f64::from(reach_px) + f64::from(TILE_PAD_PX));
+        let (o, dx, dy) = (point(o), point(x) - point(o), point(y) - point(o));
+        let distance = (o - eye).dot(dx.cross(dy).normalize()).abs();
+        let half_diagonal = 0.5 * span * (dx + dy).length().max((dx - dy).length());
+        let half_angle = 1.01 * half_diagonal / distance;
+        TileCones {
+            rays: rays.filter(|_| half_angle.is_finite()),
+            tile_px: f64::from(tile_px),
+            half_angle,
+        }
+    }
+
+    /// `sphere` (centre xyz, radius w) as [`TileCones::meets`] tests it;
+    /// `None` where every tile may meet it (no sphere, the eye inside it,
+    /// or cones so wide that the test would keep little).
+    fn sphere(&self, sphere: Option<Vec4>) -> Option<SphereCone> {
+        let ((eye, _), sphere) = (self.rays?, sphere?);
+        let to_centre = sphere.truncate().as_dvec3() - eye;
+        let (distance, radius) = (to_centre.length(), f64::from(sphere.w));
+        if distance <= radius {
+            return None;
+        }
+        let reach = self.half_angle + (radius / distance).asin();
+        (reach < std::f64::consts::FRAC_PI_2).then(|| SphereCone {
+            to_centre: to_centre / distance,
+            cos_reach: reach.cos(),
+        })
+    }
+
+    /// Whether a ray through tile (tx, ty), grown, may meet `sphere`: the
+    /// angle between the tile's axis and the sphere's centre is at most
+    /// the half-angle plus the sphere's angular radius.
+    fn meets(&self, sphere: &Option<SphereCone>, tx: usize, ty: usize) -> bool {
+        let (Some(s), Some((eye, [h0, hx, hy]))) = (sphere, self.rays) else {
+            return true;
+        };
+        let (x, y) = (
+            (tx as f64 + 0.5) * self.tile_px - 0.5,
+            (ty as f64 + 0.5) * self.tile_px - 0.5,
+        );
+        let far = h0 + x * hx + y * hy;
+        let axis = far.truncate() / far.w - eye;
+        axis.dot(s.to_centre) >= s.cos_reach * axis.length()
+    }
 }
 
 /// Per tile of `tile_px` over `size`, row by row: 1 where an instance k
@@ -124,7 +281,7 @@ fn touched_tiles<'a>(
 /// - in hybrid mode the trace pass reads the raster G-buffer only in the
 ///   tiles where a (rasterized) mesh may show, `reach_px` 0.
 pub fn reached_tiles(
-    bounds: &[Aabb],
+    bounds: &[impl ScreenBound],
     pick: impl Fn(usize) -> bool,
     clip_from_world: Mat4,
     size: (u32, u32),
@@ -133,12 +290,31 @@ pub fn reached_tiles(
 ) -> Vec<u32> {
     let tiles = tile_grid(size, tile_px);
     let mut out = vec![0u32; tiles.0 * tiles.1];
-    for (_, xs, ys) in touched_tiles(bounds, pick, clip_from_world, size, tile_px, reach_px) {
+    let cones = TileCones::new(clip_from_world, size, tile_px, reach_px);
+    for (_, xs, ys, sphere) in touched_tiles(bounds, pick, clip_from_world, size, tile_px, reach_px)
+    {
+        let sphere = cones.sphere(sphere);
         for ty in ys {
-            out[ty * tiles.0 + xs.start()..=ty * tiles.0 + xs.end()].fill(1);
+            if sphere.is_none() {
+                out[ty * tiles.0 + xs.start()..=ty * tiles.0 + xs.end()].fill(1);
+                continue;
+            }
+            for tx in xs.clone() {
+                if cones.meets(&sphere, tx, ty) {
+                    out[ty * tiles.0 + tx] = 1;
+                }
+            }
         }
     }
     out
+}
+
+/// Sphere `s` (centre xyz, radius w) grown by [`BOX_PAD_REL`] of its
+/// box's and the eye's largest coordinate, as [`grown_box`] grows boxes.
+fn grown_sphere(s: Vec4, eye: Vec3) -> Vec4 {
+    let far = s.truncate().abs() + Vec3::splat(s.w);
+    let scale = far.max(eye.abs()).max_element();
+    s + Vec4::W * BOX_PAD_REL * scale
 }
 
 /// Box `b` grown by [`BOX_PAD_REL`] of its and the eye's largest

@@ -267,16 +267,11 @@ fn bounding_sphere(accel: &SceneAccel, k: usize) -> glam::Vec4 {
         SHAPE_BOX => ((b.min + b.max) * 0.5).extend((b.max - b.min).length() * 0.5),
         SHAPE_SPHERE if !accel.moving[k] => {
             let m = glam::Mat3::from_mat4(world_from_object);
-            // Symmetric: its columns are its rows.
-            let gram = m.transpose() * m;
-            let largest = [gram.x_axis, gram.y_axis, gram.z_axis]
-                .map(|r| r.abs().element_sum())
-                .into_iter()
-                .fold(0.0, f32::max);
+            let largest = crate::accel::squared_stretch_bound(m);
             // The eigenvalues' product is the determinant and the middle
             // one is at most the largest, so largest^3 / det bounds the
             // ratio of the largest to the smallest: the stretch ratio^2.
-            let det = gram.determinant();
+            let det = (m.transpose() * m).determinant();
             if !(det > 0.0 && largest.powi(3) <= 16.0 * det) {
                 return none;
             }

@@ -736,7 +736,7 @@ impl Renderer {
         let mesh = |i: usize| accel.shapes[accel.instances[i].2 as usize].kind == SHAPE_MESH;
         let size = (self.settings.width, self.settings.height);
         let mut tiles = crate::accel::screen_tiles::primary_tiles(
-            &accel.world_bounds,
+            &accel.footprints,
             |i| !hybrid || !mesh(i),
             clip_from_world,
             size,
@@ -745,7 +745,7 @@ impl Renderer {
         let count = tiles.len() / crate::gpu::twins::PRIMARY_TILE_WORDS as usize;
         if hybrid {
             let meshes = crate::accel::screen_tiles::reached_tiles(
-                &accel.world_bounds,
+                &accel.footprints,
                 mesh,
                 clip_from_world,
                 size,
@@ -791,7 +791,7 @@ impl Renderer {
         let order = &self.buffers.instance_order;
         let reach = max_outline_px(scene).floor() as u32;
         crate::accel::screen_tiles::reached_tiles(
-            &accel.world_bounds,
+            &accel.footprints,
             |k| scene.materials[scene.instances[order[k]].material].outline_width_px >= 1.0,
             clip_from_world,
             size,
