@@ -107,9 +107,12 @@ fn texel_reach(width: f32) -> u32 {
 // 32 KiB of workgroup memory holds all of these at the widest radius.
 var<workgroup> tile_bits: array<u32, TILE_TEXELS>;
 var<workgroup> row_bits: array<u32, TILE_ROW_TEXELS>;
+// The `outlined` kernel's workgroup is one row of ACCUMULATE_TILE
+// invocations: invocation `first` of them loads (and, below, marks and
+// ORs) every ACCUMULATE_TILE-th texel from its own.
 fn load_tile(origin: vec2<i32>, span: i32, first: u32) {
     let size = vec2<i32>(frame.size_px);
-    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_TILE * ACCUMULATE_TILE)) {
+    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_TILE)) {
         let q = origin + vec2<i32>(k % span, k / span);
         var word = 0u;
         var nd = vec4<f32>(0.0);
@@ -185,7 +188,7 @@ fn outline_at(c: vec2<i32>, span: i32, r: i32) -> vec4<f32> {
 // square, so it is not checked.
 fn mark_texels(span: i32, r: i32, first: u32) {
     let bounds = smooth_step_bounds(r);
-    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_TILE * ACCUMULATE_TILE)) {
+    for (var k = i32(first); k < span * span; k += i32(ACCUMULATE_TILE)) {
         let id = tile_id[k];
         let nd = tile_normal_depth[k];
         let alone = smooth_texel(nd);
@@ -205,7 +208,7 @@ fn mark_texels(span: i32, r: i32, first: u32) {
 // columns x .. x + 2r (the 2r + 1 texels centred on pixel column x).
 fn or_rows(span: i32, r: i32, first: u32) {
     let w = i32(ACCUMULATE_TILE);
-    for (var e = i32(first); e < span * w; e += w * w) {
+    for (var e = i32(first); e < span * w; e += w) {
         let row = (e / w) * span + e % w;
         var bits = 0u;
         for (var dx = 0; dx <= 2 * r; dx++) {
@@ -286,11 +289,14 @@ fn main(
 }
 
 // The marked tiles, one workgroup each: the tile and its halo loaded into
-// workgroup memory, then each pixel's outline search.
-@compute @workgroup_size(ACCUMULATE_TILE, ACCUMULATE_TILE)
+// workgroup memory, then each pixel's outline search. One invocation per
+// column of the tile, down its rows, as `main` (csg_grid's accumulate
+// pass 0.77 of the time with one invocation a pixel, paired; the default
+// hybrid frame's 0.87; docs/performance-history.md, twenty-fifth
+// session).
+@compute @workgroup_size(ACCUMULATE_TILE, 1)
 fn outlined(
     @builtin(local_invocation_id) lid: vec3<u32>,
-    @builtin(local_invocation_index) li: u32,
     @builtin(workgroup_id) wg: vec3<u32>,
 ) {
     let r = outline_radius();
@@ -306,35 +312,41 @@ fn outlined(
         }
     }
     let origin = vec2<u32>(tile % tiles_x, tile / tiles_x) * ACCUMULATE_TILE;
-    let gid = origin + lid.xy;
-    load_tile(vec2<i32>(origin) - vec2<i32>(r), span, li);
+    load_tile(vec2<i32>(origin) - vec2<i32>(r), span, lid.x);
     workgroupBarrier();
-    // Wide outlines: only the pixels whose search could find something
-    // search (the CPU driver skips it for 8 neighbours that all agree).
-    var search = true;
     if r >= PIXEL_PROOF_MIN_RADIUS {
-        mark_texels(span, r, li);
+        mark_texels(span, r, lid.x);
         workgroupBarrier();
-        or_rows(span, r, li);
+        or_rows(span, r, lid.x);
         workgroupBarrier();
-        search = pixel_needs_search(vec2<i32>(lid.xy), span, r);
     }
-    if gid.x >= frame.size_px.x || gid.y >= frame.size_px.y {
-        return;
-    }
-    var c = gbuffer_color(vec2<i32>(gid));
-    if search {
-        // The usual outlines (1.5 px) search at r = 1: a call with the
-        // constant lets the driver unroll the 3 x 3 search (accumulate pass
-        // 0.92-0.94 of the time; docs/performance-history.md, twenty-first
-        // session).
-        var o: vec4<f32>;
-        if r == 1 {
-            o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(1), span, 1);
-        } else {
-            o = outline_at(vec2<i32>(lid.xy) + vec2<i32>(r), span, r);
+    // Each invocation down its column of the tile, as in `main`.
+    for (var row = 0u; row < ACCUMULATE_TILE; row++) {
+        let l = vec2<u32>(lid.x, row);
+        let gid = origin + l;
+        // Wide outlines: only the pixels whose search could find
+        // something search (the CPU driver skips it for 8 neighbours that
+        // all agree).
+        var search = true;
+        if r >= PIXEL_PROOF_MIN_RADIUS {
+            search = pixel_needs_search(vec2<i32>(l), span, r);
         }
-        c = mix(c, o.rgb, o.a);
+        if gid.x < frame.size_px.x && gid.y < frame.size_px.y {
+            var c = gbuffer_color(vec2<i32>(gid));
+            if search {
+                // The usual outlines (1.5 px) search at r = 1: a call with
+                // the constant lets the driver unroll the 3 x 3 search
+                // (accumulate pass 0.92-0.94 of the time;
+                // docs/performance-history.md, twenty-first session).
+                var o: vec4<f32>;
+                if r == 1 {
+                    o = outline_at(vec2<i32>(l) + vec2<i32>(1), span, 1);
+                } else {
+                    o = outline_at(vec2<i32>(l) + vec2<i32>(r), span, r);
+                }
+                c = mix(c, o.rgb, o.a);
+            }
+            add_sample(gid, c);
+        }
     }
-    add_sample(gid, c);
 }
