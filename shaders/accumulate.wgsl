@@ -3,8 +3,9 @@
 // accum[p].w counts the samples, so resolve divides by it.
 //
 // Two kernels, dispatched one after the other in one compute pass:
-// `main` over every tile, which accumulates the pixels of the tiles
-// shaders/outline_tiles.wgsl left unmarked (0) and leaves the others
+// `main`, which accumulates the pixels of the tiles
+// shaders/outline_tiles.wgsl left unmarked (0: over their list where the
+// trace pass accumulates, else over every tile) and leaves the others
 // (OUTLINE_MARK_SEARCH: `outlined`'s; OUTLINE_MARK_TRACED: no outline
 // reaches them, and the trace pass already added their colour,
 // shaders/trace.wgsl); and `outlined`, dispatched indirectly over the marked tiles
@@ -44,9 +45,9 @@
 // once (images with more tiles than one dispatch's x may count: over
 // about 4096 x 4096 pixels, since 8 px tiles are used only where they can
 // be listed; or where tests turn the list off: src/render/accumulate.rs).
-// Words 4-6: `main`'s indirect dispatch over the tiles left to it, used
-// where the trace pass accumulates and the list is read.
-@group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, 8>;
+// From word MAIN_DISPATCH_WORD: `main`'s indirect dispatch over the tiles
+// left to it, used where the trace pass accumulates and the list is read.
+@group(1) @binding(10) var<storage, read> outline_dispatch: array<u32, OUTLINE_DISPATCH_WORDS>;
 const OUTLINE_TILES_LISTED: u32 = 1u;
 
 // The tile's edge in pixels, one invocation each: 8 or 16, set per

@@ -8,7 +8,7 @@
 // `outlined` kernel runs one workgroup per marked tile and its `main`
 // kernel skips them. Where the trace pass accumulates, the tiles left to
 // `main` (marked 0) are listed too, from the list's end, and counted in
-// words 4-6, `main`'s own indirect dispatch: `main` then runs over those
+// `main`'s own indirect dispatch (from word MAIN_DISPATCH_WORD): `main` then runs over those
 // alone. One invocation walks a whole tile, so this kernel
 // needs no workgroup memory and no barrier (on the CPU driver a barrier
 // costs about as much as the loads it orders).
@@ -51,9 +51,10 @@
 @group(1) @binding(4) var<storage, read_write> tile_marks: array<u32>;
 // The accumulate pass's indirect dispatch of `outlined`: workgroup counts
 // x, y, z (y and z stay 1); x counts the marked tiles. (Word 3 is the
-// accumulate pass's: whether it reads the list.) Words 4-6: `main`'s, x
-// counting the tiles left to it where the trace pass accumulates.
-@group(1) @binding(5) var<storage, read_write> outline_dispatch: array<atomic<u32>, 8>;
+// accumulate pass's: whether it reads the list.) From MAIN_DISPATCH_WORD:
+// `main`'s, x counting the tiles left to it where the trace pass
+// accumulates.
+@group(1) @binding(5) var<storage, read_write> outline_dispatch: array<atomic<u32>, OUTLINE_DISPATCH_WORDS>;
 // The marked tiles' indices, the first x of them written, in no order;
 // where the trace pass accumulates, the tiles left to `main` from the end
 // (the last word first).
@@ -157,6 +158,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if marked {
         tile_list[atomicAdd(&outline_dispatch[0], 1u)] = gid.x;
     } else if frame.trace_accumulates != 0u {
-        tile_list[tiles.x * tiles.y - 1u - atomicAdd(&outline_dispatch[4], 1u)] = gid.x;
+        tile_list[tiles.x * tiles.y - 1u - atomicAdd(&outline_dispatch[MAIN_DISPATCH_WORD], 1u)] = gid.x;
     }
 }

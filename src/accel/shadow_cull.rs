@@ -275,9 +275,8 @@ fn bounding_sphere(accel: &SceneAccel, k: usize) -> glam::Vec4 {
             if !(det > 0.0 && largest.powi(3) <= 16.0 * det) {
                 return none;
             }
-            world_from_object
-                .transform_point3(Vec3::ZERO)
-                .extend(shape.params[0] * largest.sqrt())
+            // The sphere the screen tiles use (`accel::world_sphere`).
+            accel.footprints[k].sphere.unwrap_or(none)
         }
         _ => none,
     }

@@ -39,6 +39,14 @@ pub const OUTLINE_MARK_SEARCH: u32 = 1;
 /// An outline tile mark: no outline reaches the tile, and the trace pass
 /// has already added its colour to the accumulator (`main` leaves it).
 pub const OUTLINE_MARK_TRACED: u32 = 2;
+/// The outline dispatch buffer holds `outlined`'s indirect dispatch (words
+/// 0-2) and whether it reads the list (word 3), then from this word the
+/// accumulate pass's `main`'s indirect dispatch over the tiles the marks
+/// left to it (where the trace pass accumulates).
+pub const MAIN_DISPATCH_WORD: u32 = 4;
+/// Words of the outline dispatch buffer: both indirect dispatches (x, y,
+/// z; then a spare word).
+pub const OUTLINE_DISPATCH_WORDS: u32 = MAIN_DISPATCH_WORD + 4;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]

@@ -23,7 +23,8 @@ use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
 use crate::gpu::twins::{
-    ACCUMULATE_TILES, MAX_OUTLINE_RADIUS, OUTLINE_TILES_WORKGROUP, WIDE_OUTLINE_RADIUS,
+    ACCUMULATE_TILES, MAIN_DISPATCH_WORD, MAX_OUTLINE_RADIUS, OUTLINE_DISPATCH_WORDS,
+    OUTLINE_TILES_WORKGROUP, WIDE_OUTLINE_RADIUS,
 };
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::scene_buffers::{scene_layout, SceneBuffers, PASS_GROUP, SCENE_GROUP};
@@ -69,9 +70,9 @@ pub const TILES_LAYOUT: [wgpu::BindGroupLayoutEntry; 11] = [
 /// its tiles from the list (`shaders/accumulate.wgsl`).
 const OUTLINE_TILES_LISTED: u32 = 1;
 /// Byte offset in the outline dispatch buffer of `main`'s indirect
-/// dispatch (words 4-6), over the tiles the marks left to it where the
-/// trace pass accumulates.
-const MAIN_DISPATCH_OFFSET: u64 = 16;
+/// dispatch ([`MAIN_DISPATCH_WORD`]), over the tiles the marks left to it
+/// where the trace pass accumulates.
+const MAIN_DISPATCH_OFFSET: u64 = MAIN_DISPATCH_WORD as u64 * 4;
 
 /// The edge (pixels) of the accumulate pass's tiles, one workgroup each,
 /// for a `width` x `height` image whose widest outline is
@@ -325,16 +326,12 @@ impl AccumulatePass {
             // run); y = z = 1.
             let listed = gpu.outline_tile_list()
                 && tiles_x * tiles_y <= gpu.device.limits().max_compute_workgroups_per_dimension;
-            let start = [
-                0,
-                1,
-                1,
-                if listed { OUTLINE_TILES_LISTED } else { 0 },
-                0,
-                1,
-                1,
-                0,
-            ];
+            // Both dispatches start at x = 0 (the marks count it), y = z = 1.
+            let mut start = [0u32; OUTLINE_DISPATCH_WORDS as usize];
+            for x in [0, MAIN_DISPATCH_WORD as usize] {
+                start[x + 1..x + 3].fill(1);
+            }
+            start[3] = if listed { OUTLINE_TILES_LISTED } else { 0 };
             let outline_dispatch =
                 gpu.device
                     .create_buffer_init(&wgpu::util::BufferInitDescriptor {
