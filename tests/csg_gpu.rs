@@ -76,8 +76,10 @@ fn random_tree(seed: u32, counter: &mut u32, depth: u32) -> CsgNode {
     }
 }
 
-/// The GPU evaluator (ray-batch kernel, the trace pass's own traversal and
-/// CSG code) against the CPU reference: 40 random trees of up to 5 levels,
+/// The GPU evaluators (ray-batch kernel, the trace pass's own traversal and
+/// CSG code: the truth table for trees of up to 8 convex leaves, interval
+/// lists for the others) against the CPU reference (interval lists): 40
+/// random trees of up to 5 levels,
 /// 200 instances of them, 10,000 random rays. Every ray finds the same
 /// instance as the CPU with t within 1e-4 relative; a ray may disagree
 /// only where it grazes (the CPU's own answer changes when the origin moves
@@ -198,6 +200,9 @@ fn gpu_csg_matches_cpu_reference_on_random_trees_and_rays() {
         .trace(&gpu, buffers, &rays)
         .unwrap();
     let (mut hit_count, mut grazing, mut leaf_material_hits, mut mesh_hits) = (0, 0, 0, 0);
+    // Hits on trees evaluated by their truth table, and on the analytic
+    // trees too large for it, which the interval lists evaluate.
+    let (mut table_hits, mut large_hits) = (0, 0);
     for (i, (ray, g)) in rays.iter().zip(&hits).enumerate() {
         let (o, d) = (Vec3::from_slice(&ray.origin), Vec3::from_slice(&ray.dir));
         let cpu = accel.closest_hit(o, d, 0.0, 1e30);
@@ -218,6 +223,9 @@ fn gpu_csg_matches_cpu_reference_on_random_trees_and_rays() {
             leaf_material_hits += usize::from(h.leaf_material.is_some());
             let shape = accel.instances[h.instance as usize].2 as usize;
             mesh_hits += usize::from(shape >= mesh_trees);
+            let by_table = accel.shapes[shape].csg_fast != 0;
+            table_hits += usize::from(by_table);
+            large_hits += usize::from(!by_table && shape < mesh_trees);
         }
         if !same {
             let wobble = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z].map(|e| {
@@ -234,7 +242,18 @@ fn gpu_csg_matches_cpu_reference_on_random_trees_and_rays() {
             grazing += 1;
         }
     }
-    eprintln!("{hit_count} hits, {grazing} grazing, {mesh_hits} on mesh-leaf trees");
+    eprintln!(
+        "{hit_count} hits, {grazing} grazing, {mesh_hits} on mesh-leaf trees, \
+         {table_hits} on trees evaluated by their truth table, {large_hits} on larger ones"
+    );
+    assert!(
+        table_hits > 1000,
+        "truth-table trees barely hit ({table_hits})"
+    );
+    assert!(
+        large_hits > 1000,
+        "interval-list trees barely hit ({large_hits})"
+    );
     assert!(hit_count > 3000, "only {hit_count} of 10,000 rays hit");
     assert!(mesh_hits > 50, "mesh-leaf trees barely hit ({mesh_hits})");
     assert!(leaf_material_hits > 100, "leaf materials barely hit");
@@ -660,4 +679,98 @@ fn mesh_leaf_over_k_crossings_is_reported_not_truncated() {
         .filter(|p| p[0] == 255 && p[1] == 0 && p[2] == 255)
         .count();
     assert_eq!(magenta as u32, overflow, "each overflowed pixel is magenta");
+}
+
+/// Faces that coincide in two leaves, through the GPU's truth-table
+/// evaluator: a cube with a square tunnel whose ends are flush with two of
+/// its faces, and two cubes side by side sharing a face. Parallel rays,
+/// answers from the geometry: through the tunnel no hit (no film of the
+/// flush faces at t = 4 or 6), elsewhere the front face at t = 4 with
+/// normal +z; a ray starting inside the pair leaves it through the far face
+/// (t = 1.25), not the shared face (t = 0.25), with the outward normal.
+/// Coincident ends differ only by rounding (~1e-7 relative), far below the
+/// CSG epsilon (1e-5 relative), so every ray must agree: t to 1e-4 relative
+/// and the axis normal to 1e-3, with rays kept 0.02 from the tunnel's walls.
+#[test]
+fn coincident_faces_leave_no_slivers_on_the_gpu() {
+    let gpu = gpu();
+    let scene = scene(
+        r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 30.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 8, height: 8),
+            materials: { "m": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong) },
+            shapes: {
+                "tunnel": Difference(Box(half_extents: (1.0, 1.0, 1.0)), Box(half_extents: (0.5, 0.5, 1.0))),
+                "pair": Union([
+                    Box(half_extents: (0.5, 0.5, 0.5), transform: (translate: (-0.5, 0.0, 0.0))),
+                    Box(half_extents: (0.5, 0.5, 0.5), transform: (translate: (0.5, 0.0, 0.0))),
+                ]),
+            },
+            instances: [
+                (shape: "tunnel", material: "m"),
+                (shape: "pair", material: "m", transform: (translate: (0.0, 10.0, 0.0))),
+            ],
+        )"#,
+    );
+    let renderer = buffers_only(&gpu, scene);
+    let buffers = renderer.scene_buffers();
+    let accel = &buffers.accel;
+    assert!(
+        accel.shapes.iter().all(|s| s.csg_fast != 0),
+        "both trees should take the truth-table evaluator"
+    );
+    // Each ray with its expected hit (instance, t, normal), or None.
+    type Case = (GpuRay, Option<(u32, f32, Vec3)>);
+    let mut cases: Vec<Case> = Vec::new();
+    let ray = |o: Vec3, d: Vec3| GpuRay {
+        origin: o.extend(0.0).to_array(),
+        dir: d.extend(1e30).to_array(),
+    };
+    let steps: Vec<f32> = (0..39).map(|i| -0.95 + 0.05 * i as f32).collect();
+    let near_wall = |v: f32| (v.abs() - 0.5).abs() < 0.02;
+    for &x in &steps {
+        for &y in &steps {
+            if near_wall(x) || near_wall(y) {
+                continue;
+            }
+            let tunnel = x.abs() < 0.5 && y.abs() < 0.5;
+            let want = (!tunnel).then_some((0, 4.0, Vec3::Z));
+            cases.push((ray(Vec3::new(x, y, 5.0), -Vec3::Z), want));
+        }
+    }
+    for &y in &steps[2..37] {
+        for &z in &steps[2..37] {
+            let (p, q) = (10.0 + 0.5 * y, 0.5 * z);
+            cases.push((ray(Vec3::new(5.0, p, q), -Vec3::X), Some((1, 4.0, Vec3::X))));
+            cases.push((
+                ray(Vec3::new(0.25, p, q), -Vec3::X),
+                Some((1, 1.25, -Vec3::X)),
+            ));
+            cases.push((
+                ray(Vec3::new(-0.25, p, q), Vec3::X),
+                Some((1, 1.25, Vec3::X)),
+            ));
+        }
+    }
+    let rays: Vec<GpuRay> = cases.iter().map(|c| c.0).collect();
+    let hits = RayBatch::new(&gpu)
+        .unwrap()
+        .trace(&gpu, buffers, &rays)
+        .unwrap();
+    for (i, ((ray, want), got)) in cases.iter().zip(&hits).enumerate() {
+        match want {
+            None => assert_eq!(
+                got.instance,
+                u32::MAX,
+                "ray {i} from {:?} should pass through the tunnel: {got:?}",
+                ray.origin
+            ),
+            Some((instance, t, n)) => assert!(
+                got.instance == *instance
+                    && (got.t - t).abs() <= 1e-4 * t
+                    && (Vec3::from(got.normal) - *n).length() < 1e-3,
+                "ray {i} from {:?}: want instance {instance} at t = {t} with normal {n}, got {got:?}",
+                ray.origin
+            ),
+        }
+    }
 }

@@ -156,7 +156,7 @@ fn twins_match_wgsl_layouts() {
             params,
             kind,
             blas_root,
-            _pad0,
+            csg_fast,
             _pad1
         }
     );
@@ -170,7 +170,7 @@ fn twins_match_wgsl_layouts() {
             kind,
             blas_root,
             material,
-            _pad
+            table
         }
     );
     check_twin!(

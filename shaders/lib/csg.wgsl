@@ -1,5 +1,6 @@
 // CSG by intervals: the WGSL twin of src/accel/csg.rs (same steps, same
-// order, same epsilon). A CSG shape's `blas_root` is the first instruction
+// order, same epsilon). Trees of at most CSG_FAST_MAX_LEAVES convex leaves
+// take the truth-table evaluator at the end of this file instead. A CSG shape's `blas_root` is the first instruction
 // of its postfix program in `csg_ops`; a leaf instruction pushes the spans
 // of t where the ray is inside that leaf (`load_csg_leaf(arg)`), a set
 // operation pops two span lists and pushes their union, intersection or
@@ -365,4 +366,346 @@ fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
         }
     }
     return no_hit();
+}
+
+// ---------------------------------------------------------------------------
+// Programs of at most CSG_FAST_MAX_LEAVES convex leaves (sphere, box,
+// cylinder, cone) by their truth table instead of interval lists: each
+// leaf's span of the line, then every span end classified. An end at t is a
+// boundary of the solid where the solid holds the point t - csg_eps(t) and
+// not t + csg_eps(t), or the other way round; the solid holds a point when
+// bit m of the table is set, m having bit i where leaf i holds it
+// (src/accel/csg.rs, fast_table). The nearest boundary in (t_min, t_max) is
+// the hit. No private arrays and no loops: on lavapipe the interval lists'
+// stores and sweeps cost more than the leaves (docs/performance.md).
+//
+// The same answers as the lists, up to what falls within csg_eps of an end
+// (the lists merge ends that close after each operation, this after the
+// whole tree): ends closer than csg_eps(t) count as one, a span or gap of
+// the solid shorter than csg_eps(t) is dropped or closed, and a leaf's own
+// span that short is empty, as there. Where ends of two leaves coincide
+// (a face cut flush), the nearest of them gives the normal and material.
+
+// The most leaves of the scene's programs evaluated this way (0: none, and
+// the code below is left out); CSG_INTERPRETER false leaves the interval
+// lists' code out (every CSG program of the scene is evaluated this way).
+// Set per pipeline (src/render/trace.rs, Variant).
+override CSG_FAST_LEAVES: u32 = CSG_FAST_MAX_LEAVES;
+override CSG_INTERPRETER: bool = true;
+
+// A leaf's span of the whole line in leaf space: entry t0, exit t1 and the
+// leaf's outward normals there.
+struct CsgSpan {
+    ok: bool,
+    t0: f32,
+    t1: f32,
+    n0: vec3<f32>,
+    n1: vec3<f32>,
+}
+
+// Of up to 4 candidate boundaries (ok: on the surface), the index of the
+// nearest after `after` and before CSG_FAR (4: none), ties to the first.
+// The intersect_* functions pick the same candidates in the same order,
+// so the span ends are theirs bit for bit.
+fn csg_nearest_after(t: vec4<f32>, ok: vec4<bool>, after: f32) -> u32 {
+    var best = 4u;
+    var bt = CSG_FAR;
+    var take = ok.x && t.x > after && t.x < bt;
+    best = select(best, 0u, take);
+    bt = select(bt, t.x, take);
+    take = ok.y && t.y > after && t.y < bt;
+    best = select(best, 1u, take);
+    bt = select(bt, t.y, take);
+    take = ok.z && t.z > after && t.z < bt;
+    best = select(best, 2u, take);
+    bt = select(bt, t.z, take);
+    take = ok.w && t.w > after && t.w < bt;
+    return select(best, 3u, take);
+}
+
+fn csg_box_normal(p: vec3<f32>) -> vec3<f32> {
+    let a = abs(p);
+    var n = vec3<f32>(0.0, 0.0, sign(p.z));
+    if a.x >= a.y && a.x >= a.z {
+        n = vec3<f32>(sign(p.x), 0.0, 0.0);
+    } else if a.y >= a.z {
+        n = vec3<f32>(0.0, sign(p.y), 0.0);
+    }
+    return n;
+}
+
+// The outward normal of candidate i (csg_leaf_span's order) at t.
+fn csg_span_normal(kind: u32, p4: vec4<f32>, o: vec3<f32>, d: vec3<f32>, i: u32, t: f32) -> vec3<f32> {
+    let p = o + d * t;
+    switch kind {
+        case SHAPE_SPHERE: {
+            return p / p4.x;
+        }
+        case SHAPE_BOX: {
+            return csg_box_normal(p / p4.xyz);
+        }
+        case SHAPE_CYLINDER: {
+            if i < 2u {
+                return vec3<f32>(p.x, 0.0, p.z) / p4.x;
+            }
+            return vec3<f32>(0.0, select(-1.0, 1.0, i == 2u), 0.0);
+        }
+        default: {
+            if i < 2u {
+                let k = p4.x / p4.y;
+                return normalize(vec3<f32>(p.x, k * k * (p4.y - p.y), p.z));
+            }
+            return vec3<f32>(0.0, -1.0, 0.0);
+        }
+    }
+}
+
+// The span of the line (o, d) inside a convex leaf: the boundaries the
+// intersect_* functions give from -CSG_FAR and then from the first one,
+// found together (their candidates, in their order), dropped where the
+// two are closer than csg_eps as csg_push drops them.
+fn csg_leaf_span(kind: u32, p4: vec4<f32>, o: vec3<f32>, d: vec3<f32>) -> CsgSpan {
+    var t = vec4<f32>(CSG_FAR);
+    var ok = vec4<bool>(false);
+    switch kind {
+        case SHAPE_SPHERE: {
+            let a = dot(d, d);
+            let b = dot(o, d);
+            let c = dot(o, o) - p4.x * p4.x;
+            let disc = b * b - a * c;
+            let s = sqrt(max(disc, 0.0));
+            t = vec4<f32>((-b - s) / a, (-b + s) / a, CSG_FAR, CSG_FAR);
+            ok = vec4<bool>(disc >= 0.0, disc >= 0.0, false, false);
+        }
+        case SHAPE_BOX: {
+            let inv = 1.0 / d;
+            let t1 = (-p4.xyz - o) * inv;
+            let t2 = (p4.xyz - o) * inv;
+            let lo = min(t1, t2);
+            let hi = max(t1, t2);
+            let near = max(max(lo.x, lo.y), lo.z);
+            let far = min(min(hi.x, hi.y), hi.z);
+            t = vec4<f32>(near, far, CSG_FAR, CSG_FAR);
+            ok = vec4<bool>(near <= far, near <= far, false, false);
+        }
+        case SHAPE_CYLINDER: {
+            let r = p4.x;
+            let half = p4.y * 0.5;
+            let a = d.x * d.x + d.z * d.z;
+            let b = o.x * d.x + o.z * d.z;
+            let c = o.x * o.x + o.z * o.z - r * r;
+            let disc = b * b - a * c;
+            let s = sqrt(max(disc, 0.0));
+            let r0 = (-b - s) / a;
+            let r1 = (-b + s) / a;
+            let body = a > 0.0 && disc >= 0.0;
+            let c0 = (half - o.y) / d.y;
+            let c1 = (-half - o.y) / d.y;
+            let p0 = o + d * c0;
+            let p1 = o + d * c1;
+            let caps = d.y != 0.0;
+            t = vec4<f32>(r0, r1, c0, c1);
+            ok = vec4<bool>(
+                body && abs(o.y + d.y * r0) <= half,
+                body && abs(o.y + d.y * r1) <= half,
+                caps && p0.x * p0.x + p0.z * p0.z <= r * r,
+                caps && p1.x * p1.x + p1.z * p1.z <= r * r,
+            );
+        }
+        case SHAPE_CONE: {
+            let r = p4.x;
+            let height = p4.y;
+            let k = r / height;
+            let k2 = k * k;
+            let hy = height - o.y;
+            let a = d.x * d.x + d.z * d.z - k2 * d.y * d.y;
+            let b = o.x * d.x + o.z * d.z + k2 * hy * d.y;
+            let c = o.x * o.x + o.z * o.z - k2 * hy * hy;
+            let disc = b * b - a * c;
+            let s = sqrt(max(disc, 0.0));
+            let q0 = (-b - s) / a;
+            let q1 = (-b + s) / a;
+            let quadratic = abs(a) > 1e-12;
+            let linear = -c / (2.0 * b);
+            let r0 = select(linear, min(q0, q1), quadratic);
+            let r1 = max(q0, q1);
+            let n_roots = select(select(0u, 1u, abs(b) > 1e-12), select(0u, 2u, disc >= 0.0), quadratic);
+            let y0 = o.y + d.y * r0;
+            let y1 = o.y + d.y * r1;
+            let tb = -o.y / d.y;
+            let pb = o + d * tb;
+            t = vec4<f32>(r0, r1, tb, CSG_FAR);
+            ok = vec4<bool>(
+                n_roots >= 1u && y0 >= 0.0 && y0 <= height,
+                n_roots >= 2u && y1 >= 0.0 && y1 <= height,
+                d.y != 0.0 && pb.x * pb.x + pb.z * pb.z <= r * r,
+                false,
+            );
+        }
+        default: {}
+    }
+    let i0 = csg_nearest_after(t, ok, -CSG_FAR);
+    let t0 = t[min(i0, 3u)];
+    let i1 = csg_nearest_after(t, ok, select(t0, CSG_FAR, i0 == 4u));
+    let t1 = t[min(i1, 3u)];
+    var span = CsgSpan(false, CSG_FAR, CSG_FAR, vec3<f32>(0.0), vec3<f32>(0.0));
+    if i1 != 4u && t1 - t0 >= csg_eps(t1) {
+        span = CsgSpan(true, t0, t1, csg_span_normal(kind, p4, o, d, i0, t0), csg_span_normal(kind, p4, o, d, i1, t1));
+    }
+    return span;
+}
+
+// One leaf of a program evaluated by its table, in CSG space: its span
+// (lo, hi; both CSG_FAR where empty, so that no point is inside), its
+// leaf-space normals there and its word of the table.
+struct CsgSlot {
+    lo: f32,
+    hi: f32,
+    n_lo: vec3<f32>,
+    n_hi: vec3<f32>,
+    word: u32,
+}
+
+fn csg_fast_slot(i: u32, count: u32, first: u32, o: vec3<f32>, d: vec3<f32>) -> CsgSlot {
+    var slot = CsgSlot(CSG_FAR, CSG_FAR, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+    if i < count {
+        let leaf = load_csg_leaf(first + i);
+        slot.word = leaf.table;
+        let lo = (leaf.leaf_from_csg * vec4<f32>(o, 1.0)).xyz;
+        let ld = (leaf.leaf_from_csg * vec4<f32>(d, 0.0)).xyz;
+        let span = csg_leaf_span(leaf.kind, leaf.params, lo, ld);
+        if span.ok {
+            slot = CsgSlot(span.t0, span.t1, span.n0, span.n1, leaf.table);
+        }
+    }
+    return slot;
+}
+
+// The spans of leaves 0-3 (a) and 4-7 (b), and the table's words.
+struct CsgSpans {
+    lo_a: vec4<f32>,
+    hi_a: vec4<f32>,
+    lo_b: vec4<f32>,
+    hi_b: vec4<f32>,
+    words_a: vec4<u32>,
+    words_b: vec4<u32>,
+}
+
+// Whether the solid holds the point at x.
+fn csg_fast_holds(s: CsgSpans, x: f32) -> bool {
+    let bits = vec4<u32>(1u, 2u, 4u, 8u);
+    let in_a = (vec4<f32>(x) >= s.lo_a) & (vec4<f32>(x) < s.hi_a);
+    var m = dot(select(vec4<u32>(0u), bits, in_a), vec4<u32>(1u));
+    var word = s.words_a.x;
+    if CSG_FAST_LEAVES > 4u {
+        let in_b = (vec4<f32>(x) >= s.lo_b) & (vec4<f32>(x) < s.hi_b);
+        m |= dot(select(vec4<u32>(0u), bits, in_b), vec4<u32>(1u)) << 4u;
+        if CSG_FAST_LEAVES > 5u {
+            let w = m >> 5u;
+            let q = select(s.words_a, s.words_b, w >= 4u);
+            word = q[w & 3u];
+        }
+    }
+    return ((word >> (m & 31u)) & 1u) == 1u;
+}
+
+struct CsgBest {
+    t: f32,
+    leaf: u32,
+    // Leaf space, turned to face out of the solid.
+    n: vec3<f32>,
+}
+
+// Takes the span end at t (of leaf `leaf`, its entry when `entry`, normal
+// n) where it is a boundary of the solid in (t_min, best.t).
+fn csg_fast_end(best: ptr<function, CsgBest>, s: CsgSpans, t: f32, n: vec3<f32>, leaf: u32, entry: bool, t_min: f32) {
+    let e = csg_eps(t);
+    let before = csg_fast_holds(s, t - e);
+    let after = csg_fast_holds(s, t + e);
+    if before != after && t > t_min && t < (*best).t {
+        // Entering the solid through a leaf's exit (a subtracted leaf), or
+        // leaving it through an entry: the leaf's normal points inwards.
+        *best = CsgBest(t, leaf, select(n, -n, after != entry));
+    }
+}
+
+// Both ends of slot k.
+fn csg_fast_ends(best: ptr<function, CsgBest>, s: CsgSpans, slot: CsgSlot, k: u32, t_min: f32) {
+    csg_fast_end(best, s, slot.lo, slot.n_lo, k, true, t_min);
+    csg_fast_end(best, s, slot.hi, slot.n_hi, k, false, t_min);
+}
+
+// The closest boundary in (t_min, t_max) of the program whose
+// GpuShape.csg_fast is `fast`, in CSG object space; sets object_material.
+fn intersect_csg_fast(fast: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
+    let count = fast >> CSG_FAST_COUNT_SHIFT;
+    let first = fast & ((1u << CSG_FAST_COUNT_SHIFT) - 1u);
+    let empty = CsgSlot(CSG_FAR, CSG_FAR, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+    let s0 = csg_fast_slot(0u, count, first, o, d);
+    var s1 = empty;
+    var s2 = empty;
+    var s3 = empty;
+    var s4 = empty;
+    var s5 = empty;
+    var s6 = empty;
+    var s7 = empty;
+    if CSG_FAST_LEAVES > 1u {
+        s1 = csg_fast_slot(1u, count, first, o, d);
+    }
+    if CSG_FAST_LEAVES > 2u {
+        s2 = csg_fast_slot(2u, count, first, o, d);
+    }
+    if CSG_FAST_LEAVES > 3u {
+        s3 = csg_fast_slot(3u, count, first, o, d);
+    }
+    if CSG_FAST_LEAVES > 4u {
+        s4 = csg_fast_slot(4u, count, first, o, d);
+    }
+    if CSG_FAST_LEAVES > 5u {
+        s5 = csg_fast_slot(5u, count, first, o, d);
+    }
+    if CSG_FAST_LEAVES > 6u {
+        s6 = csg_fast_slot(6u, count, first, o, d);
+    }
+    if CSG_FAST_LEAVES > 7u {
+        s7 = csg_fast_slot(7u, count, first, o, d);
+    }
+    let s = CsgSpans(
+        vec4<f32>(s0.lo, s1.lo, s2.lo, s3.lo),
+        vec4<f32>(s0.hi, s1.hi, s2.hi, s3.hi),
+        vec4<f32>(s4.lo, s5.lo, s6.lo, s7.lo),
+        vec4<f32>(s4.hi, s5.hi, s6.hi, s7.hi),
+        vec4<u32>(s0.word, s1.word, s2.word, s3.word),
+        vec4<u32>(s4.word, s5.word, s6.word, s7.word),
+    );
+    var best = CsgBest(min(t_max, CSG_FAR), 0u, vec3<f32>(0.0));
+    csg_fast_ends(&best, s, s0, 0u, t_min);
+    if CSG_FAST_LEAVES > 1u {
+        csg_fast_ends(&best, s, s1, 1u, t_min);
+    }
+    if CSG_FAST_LEAVES > 2u {
+        csg_fast_ends(&best, s, s2, 2u, t_min);
+    }
+    if CSG_FAST_LEAVES > 3u {
+        csg_fast_ends(&best, s, s3, 3u, t_min);
+    }
+    if CSG_FAST_LEAVES > 4u {
+        csg_fast_ends(&best, s, s4, 4u, t_min);
+    }
+    if CSG_FAST_LEAVES > 5u {
+        csg_fast_ends(&best, s, s5, 5u, t_min);
+    }
+    if CSG_FAST_LEAVES > 6u {
+        csg_fast_ends(&best, s, s6, 6u, t_min);
+    }
+    if CSG_FAST_LEAVES > 7u {
+        csg_fast_ends(&best, s, s7, 7u, t_min);
+    }
+    if best.t >= min(t_max, CSG_FAR) {
+        return no_hit();
+    }
+    let leaf = load_csg_leaf(first + best.leaf);
+    object_material = leaf.material;
+    let n = (leaf.csg_normal_from_leaf * vec4<f32>(best.n, 0.0)).xyz;
+    return ObjectHit(true, best.t, n, n);
 }

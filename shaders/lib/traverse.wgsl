@@ -155,7 +155,13 @@ fn intersect_instance_shape(shape: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, 
         if !csg_bound_may_hit(s.params, o, d, t_min, t_max) {
             return no_hit();
         }
-        return intersect_csg(s.blas_root, o, d, t_min, t_max, base);
+        if CSG_FAST_LEAVES > 0u && s.csg_fast != 0u {
+            return intersect_csg_fast(s.csg_fast, o, d, t_min, t_max);
+        }
+        if CSG_INTERPRETER {
+            return intersect_csg(s.blas_root, o, d, t_min, t_max, base);
+        }
+        return no_hit();
     }
     if s.kind == SHAPE_MESH {
         if !MESHES_ENABLED {

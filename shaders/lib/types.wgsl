@@ -181,7 +181,7 @@ struct GpuShape {
     params: vec4<f32>,
     kind: u32,
     blas_root: u32,
-    _pad0: u32,
+    csg_fast: u32,
     _pad1: u32,
 }
 
@@ -212,7 +212,7 @@ struct GpuCsgLeaf {
     kind: u32,
     blas_root: u32,
     material: u32,
-    _pad: u32,
+    table: u32,
 }
 
 // Index of pixel p in the trace pass's output buffers (src/render/targets.rs,

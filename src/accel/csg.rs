@@ -8,6 +8,12 @@
 //! carry the outward normal of the result there and the leaf's material.
 //! The first endpoint in (t_min, t_max) of the final list is the hit.
 //!
+//! On the GPU, a tree of at most `CSG_FAST_MAX_LEAVES` convex leaves is
+//! evaluated another way (`intersect_csg_fast`, lib/csg.wgsl): by its truth
+//! table ([`fast_table`]), which classifies each leaf span's ends. It gives
+//! the answers of these lists up to what lies within `csg_eps` of an end
+//! (tests/csg_gpu.rs compares the two on random trees).
+//!
 //! Leaves are evaluated over the whole line (t from -1e30 to 1e30), so
 //! whether the ray starts inside a leaf never matters; convex analytic leaves
 //! reuse the exact intersection functions twice (the entry, then the exit
@@ -19,8 +25,9 @@ use std::ops::ControlFlow;
 use glam::{Mat4, Vec3};
 
 use super::layout::{
-    BvhNode, GpuCsgLeaf, GpuCsgOp, GpuTriangle, CSG_NO_MATERIAL, CSG_OP_DIFFERENCE, CSG_OP_END,
-    CSG_OP_INTERSECTION, CSG_OP_LEAF, CSG_OP_UNION, MAX_TRAVERSAL_STEPS, SHAPE_MESH,
+    BvhNode, GpuCsgLeaf, GpuCsgOp, GpuTriangle, CSG_FAST_COUNT_SHIFT, CSG_FAST_MAX_LEAVES,
+    CSG_NO_MATERIAL, CSG_OP_DIFFERENCE, CSG_OP_END, CSG_OP_INTERSECTION, CSG_OP_LEAF, CSG_OP_UNION,
+    MAX_TRAVERSAL_STEPS, SHAPE_BOX, SHAPE_CONE, SHAPE_CYLINDER, SHAPE_MESH, SHAPE_SPHERE,
 };
 use super::{intersect, traverse, AccelError, BoxRay, ChildOrder, Stopped};
 use crate::scene::{Csg, CsgNode, Mesh, CSG_MAX_INTERVALS, CSG_MESH_MAX_CROSSINGS, CSG_STACK};
@@ -91,22 +98,89 @@ fn push(list: &mut Vec<Endpoint>, e: Endpoint) -> Result<(), CsgOverflow> {
     Ok(())
 }
 
+/// The leaf kinds whose spans `csg_leaf_span` (lib/csg.wgsl) computes: a
+/// tree with another leaf runs on interval lists.
+pub const FAST_KINDS: [u32; 4] = [SHAPE_SPHERE, SHAPE_BOX, SHAPE_CYLINDER, SHAPE_CONE];
+
+/// Where [`compile`] put a tree.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Program {
+    /// The index of its first instruction (`GpuShape::blas_root`).
+    pub start: u32,
+    /// `GpuShape::csg_fast`: its leaf count and first leaf where its
+    /// truth table is in its leaves' `table` words ([`fast_table`]), else 0.
+    pub fast: u32,
+}
+
 /// Flattens `csg` into `ops` (ending with `CSG_OP_END`) and `leaves`; mesh
 /// leaves get their bottom-level BVH from `add_mesh` (which returns its
-/// root). Returns the index of the first instruction.
+/// root). A tree of at most [`CSG_FAST_MAX_LEAVES`] analytic leaves also
+/// gets its truth table ([`fast_table`]) in its leaves' `table` words.
 pub fn compile(
     csg: &Csg,
     ops: &mut Vec<GpuCsgOp>,
     leaves: &mut Vec<GpuCsgLeaf>,
     add_mesh: &mut dyn FnMut(&Mesh) -> Result<u32, AccelError>,
-) -> Result<u32, AccelError> {
+) -> Result<Program, AccelError> {
     let start = ops.len() as u32;
+    let first = leaves.len() as u32;
     emit(&csg.root, ops, leaves, add_mesh)?;
     ops.push(GpuCsgOp {
         op: CSG_OP_END,
         arg: 0,
     });
-    Ok(start)
+    let own = &mut leaves[first as usize..];
+    let analytic = own.iter().all(|l| FAST_KINDS.contains(&l.kind));
+    let count = own.len() as u32;
+    let fast = if analytic && count <= CSG_FAST_MAX_LEAVES && first < 1 << CSG_FAST_COUNT_SHIFT {
+        let table = fast_table(&ops[start as usize..], first, count);
+        for (leaf, word) in own.iter_mut().zip(table) {
+            leaf.table = word;
+        }
+        count << CSG_FAST_COUNT_SHIFT | first
+    } else {
+        0
+    };
+    Ok(Program { start, fast })
+}
+
+/// The truth table of a program (`ops`, from its first instruction) whose
+/// leaves are `count` leaves from index `first`: bit m (of word m / 32) is
+/// set when the solid holds the points inside exactly the leaves whose bits
+/// are set in m (bit i: leaf `first + i`). The table words of
+/// `intersect_csg_fast` (lib/csg.wgsl), which classifies points along a ray
+/// by it instead of running the program on interval lists.
+pub fn fast_table(ops: &[GpuCsgOp], first: u32, count: u32) -> Vec<u32> {
+    let mut words = vec![0u32; (1usize << count).div_ceil(32)];
+    for m in 0..1u32 << count {
+        let mut stack: Vec<bool> = Vec::new();
+        for op in ops {
+            match op.op {
+                CSG_OP_END => break,
+                CSG_OP_LEAF => stack.push(m >> (op.arg - first) & 1 == 1),
+                set => {
+                    let (top, below) = (stack.pop(), stack.pop());
+                    let (Some(top), Some(below)) = (top, below) else {
+                        unreachable!("compile emits well-formed programs")
+                    };
+                    let (a, b) = if op.arg == 1 {
+                        (top, below)
+                    } else {
+                        (below, top)
+                    };
+                    stack.push(match set {
+                        CSG_OP_UNION => a || b,
+                        CSG_OP_INTERSECTION => a && b,
+                        _ => a && !b,
+                    });
+                }
+            }
+        }
+        if stack == [true] {
+            words[(m / 32) as usize] |= 1 << (m % 32);
+        }
+    }
+    words
 }
 
 fn emit(
@@ -130,7 +204,7 @@ fn emit(
                 kind,
                 blas_root,
                 material: leaf.material.map_or(CSG_NO_MATERIAL, |m| m as u32),
-                _pad: 0,
+                table: 0,
             });
             ops.push(GpuCsgOp {
                 op: CSG_OP_LEAF,

@@ -145,13 +145,22 @@ pub struct GpuShape {
     pub params: [f32; 4],
     pub kind: u32,
     pub blas_root: u32,
-    pub _pad0: u32,
+    /// For a CSG shape evaluated by its truth table (lib/csg.wgsl,
+    /// `intersect_csg_fast`): its leaf count times [`CSG_FAST_COUNT_SHIFT`]
+    /// plus the index of its first leaf; 0 for every other shape and for
+    /// CSG programs the interpreter runs. See [`crate::accel::csg::fast_table`].
+    pub csg_fast: u32,
     pub _pad1: u32,
 }
 
 /// Shape kind of a CSG tree: `blas_root` is the first instruction of its
 /// postfix program in the CSG op buffer.
 pub const SHAPE_CSG: u32 = 7;
+/// [`GpuShape::csg_fast`]: the leaf count sits above this bit.
+pub const CSG_FAST_COUNT_SHIFT: u32 = 24;
+/// The most leaves a CSG program evaluated by its truth table may have
+/// (2^8 table bits, spread over the `table` words of its first leaves).
+pub const CSG_FAST_MAX_LEAVES: u32 = 8;
 /// CSG program instructions ([`GpuCsgOp::op`]).
 pub const CSG_OP_END: u32 = 0;
 pub const CSG_OP_LEAF: u32 = 1;
@@ -187,5 +196,8 @@ pub struct GpuCsgLeaf {
     pub blas_root: u32,
     /// Material id, or [`CSG_NO_MATERIAL`].
     pub material: u32,
-    pub _pad: u32,
+    /// Word i of the truth table of the program this leaf is leaf i of,
+    /// where that program is evaluated by its table
+    /// ([`GpuShape::csg_fast`]); else 0.
+    pub table: u32,
 }

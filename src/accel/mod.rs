@@ -284,7 +284,7 @@ impl SceneAccel {
                 params,
                 kind,
                 blas_root: 0,
-                _pad0: 0,
+                csg_fast: 0,
                 _pad1: 0,
             };
             let (lo, hi) = shape.bounds();
@@ -308,10 +308,11 @@ impl SceneAccel {
                 triangle_sources.extend(corners.into_iter().map(|v| (id as u32, v)));
             }
             if let Shape::Csg(tree) = shape {
-                gpu_shape.blas_root =
-                    csg::compile(tree, &mut csg_ops, &mut csg_leaves, &mut |m| {
-                        append_mesh_blas(m, &name, &mut nodes, &mut triangles, &mut max_blas_depth)
-                    })?;
+                let program = csg::compile(tree, &mut csg_ops, &mut csg_leaves, &mut |m| {
+                    append_mesh_blas(m, &name, &mut nodes, &mut triangles, &mut max_blas_depth)
+                })?;
+                gpu_shape.blas_root = program.start;
+                gpu_shape.csg_fast = program.fast;
             }
             shapes.push(gpu_shape);
             triangle_sources.resize(triangles.len(), (u32::MAX, 0));

@@ -36,6 +36,8 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("CSG_MAX_INTERVALS", CSG_MAX_INTERVALS),
         ("CSG_STACK", CSG_STACK),
         ("CSG_MESH_MAX_CROSSINGS", CSG_MESH_MAX_CROSSINGS),
+        ("CSG_FAST_MAX_LEAVES", twins::CSG_FAST_MAX_LEAVES),
+        ("CSG_FAST_COUNT_SHIFT", twins::CSG_FAST_COUNT_SHIFT),
         // The CSG evaluator's lengths in this module, the same way.
         ("CSG_EVAL_STACK", CSG_STACK),
         ("CSG_EVAL_INTERVALS", CSG_MAX_INTERVALS),

@@ -20,7 +20,8 @@ use crate::gpu::layout::{
 };
 use crate::gpu::shader::Traversal;
 use crate::gpu::twins::{
-    PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, SHAPE_MESH, TILE_MESH_MAY_SHOW, TRACE_WORKGROUP,
+    CSG_FAST_COUNT_SHIFT, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, SHAPE_CSG, SHAPE_MESH,
+    TILE_MESH_MAY_SHOW, TRACE_WORKGROUP,
 };
 use crate::gpu::uniform_tables::UniformTables;
 use crate::gpu::{readback, shader, Gpu, GpuError};
@@ -101,6 +102,11 @@ struct DriverVariant {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Variant {
     csg: bool,
+    /// `CSG_FAST_LEAVES` (lib/csg.wgsl): the most leaves of the scene's CSG
+    /// programs that are evaluated by their truth table (0: none).
+    csg_fast_leaves: u32,
+    /// `CSG_INTERPRETER`: some CSG program runs on interval lists.
+    csg_interpreter: bool,
     meshes: bool,
     /// `SHADOW_LIGHTS`: bit i for light i (< 32) that casts shadows
     /// (`SHADOWS_ENABLED` where some bit or `shadow_lights_from_32` is set).
@@ -157,6 +163,8 @@ impl Variant {
         let mask_lights = u32::BITS as usize;
         Variant {
             csg: !buffers.accel.csg_ops.is_empty(),
+            csg_fast_leaves: csg_programs(buffers).0,
+            csg_interpreter: csg_programs(buffers).1,
             meshes: !buffers.accel.triangles.is_empty(),
             shadow_lights: casts
                 .iter()
@@ -194,6 +202,8 @@ impl Variant {
         let flag = |b: bool| f64::from(u8::from(b));
         let mut constants = vec![
             ("CSG_ENABLED", flag(self.csg)),
+            ("CSG_FAST_LEAVES", f64::from(self.csg_fast_leaves)),
+            ("CSG_INTERPRETER", flag(self.csg_interpreter)),
             ("MESHES_ENABLED", flag(self.meshes)),
             (
                 "SHADOWS_ENABLED",
@@ -219,6 +229,17 @@ impl Variant {
 /// [`Variant::shadow_lists`]).
 fn shadow_lists(scene: &Scene, buffers: &SceneBuffers) -> bool {
     buffers.shadow_lists && shadow_cull::lists_read(&buffers.accel, &scene.lights)
+}
+
+/// Of the scene's CSG programs: the most leaves of those evaluated by their
+/// truth table (`GpuShape::csg_fast`), and whether some other runs on
+/// interval lists.
+fn csg_programs(buffers: &SceneBuffers) -> (u32, bool) {
+    let csg = buffers.accel.shapes.iter().filter(|s| s.kind == SHAPE_CSG);
+    csg.fold((0, false), |(most, lists), s| {
+        let leaves = s.csg_fast >> CSG_FAST_COUNT_SHIFT;
+        (most.max(leaves), lists || s.csg_fast == 0)
+    })
 }
 
 /// The analytic shape kinds (bit 1 << kind) of the scene's shapes and CSG
