@@ -393,14 +393,15 @@ fn intersect_csg(start: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32,
 override CSG_FAST_LEAVES: u32 = CSG_FAST_MAX_LEAVES;
 override CSG_INTERPRETER: bool = true;
 
-// A leaf's span of the whole line in leaf space: entry t0, exit t1 and the
-// leaf's outward normals there.
+// A leaf's span of the whole line in leaf space: entry t0 and exit t1,
+// and which of the leaf's candidate boundaries (csg_leaf_span) each is, for
+// its normal (csg_span_normal), computed only for the hit.
 struct CsgSpan {
     ok: bool,
     t0: f32,
     t1: f32,
-    n0: vec3<f32>,
-    n1: vec3<f32>,
+    i0: u32,
+    i1: u32,
 }
 
 // Of up to 4 candidate boundaries (ok: on the surface), the index of the
@@ -434,7 +435,8 @@ fn csg_box_normal(p: vec3<f32>) -> vec3<f32> {
     return n;
 }
 
-// The outward normal of candidate i (csg_leaf_span's order) at t.
+// The outward normal of candidate i (csg_leaf_span's order) at t: the
+// intersect function's normal there.
 fn csg_span_normal(kind: u32, p4: vec4<f32>, o: vec3<f32>, d: vec3<f32>, i: u32, t: f32) -> vec3<f32> {
     let p = o + d * t;
     switch kind {
@@ -548,34 +550,40 @@ fn csg_leaf_span(kind: u32, p4: vec4<f32>, o: vec3<f32>, d: vec3<f32>) -> CsgSpa
     let t0 = t[min(i0, 3u)];
     let i1 = csg_nearest_after(t, ok, select(t0, CSG_FAR, i0 == 4u));
     let t1 = t[min(i1, 3u)];
-    var span = CsgSpan(false, CSG_FAR, CSG_FAR, vec3<f32>(0.0), vec3<f32>(0.0));
-    if i1 != 4u && t1 - t0 >= csg_eps(t1) {
-        span = CsgSpan(true, t0, t1, csg_span_normal(kind, p4, o, d, i0, t0), csg_span_normal(kind, p4, o, d, i1, t1));
-    }
-    return span;
+    let ok_span = i1 != 4u && t1 - t0 >= csg_eps(t1);
+    return CsgSpan(ok_span, t0, t1, i0, i1);
 }
 
 // One leaf of a program evaluated by its table, in CSG space: its span
-// (lo, hi; both CSG_FAR where empty, so that no point is inside), its
-// leaf-space normals there and its word of the table.
+// (lo, hi; both CSG_FAR where empty, so that no point is inside), which
+// candidates of the leaf its ends are (entry + 4 * exit) and its word of
+// the table.
 struct CsgSlot {
     lo: f32,
     hi: f32,
-    n_lo: vec3<f32>,
-    n_hi: vec3<f32>,
+    ends: u32,
     word: u32,
 }
 
+// Leaf i's local ray.
+struct CsgLeafRay {
+    o: vec3<f32>,
+    d: vec3<f32>,
+}
+
+fn csg_leaf_ray(leaf: GpuCsgLeaf, o: vec3<f32>, d: vec3<f32>) -> CsgLeafRay {
+    return CsgLeafRay((leaf.leaf_from_csg * vec4<f32>(o, 1.0)).xyz, (leaf.leaf_from_csg * vec4<f32>(d, 0.0)).xyz);
+}
+
 fn csg_fast_slot(i: u32, count: u32, first: u32, o: vec3<f32>, d: vec3<f32>) -> CsgSlot {
-    var slot = CsgSlot(CSG_FAR, CSG_FAR, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+    var slot = CsgSlot(CSG_FAR, CSG_FAR, 0u, 0u);
     if i < count {
         let leaf = load_csg_leaf(first + i);
         slot.word = leaf.table;
-        let lo = (leaf.leaf_from_csg * vec4<f32>(o, 1.0)).xyz;
-        let ld = (leaf.leaf_from_csg * vec4<f32>(d, 0.0)).xyz;
-        let span = csg_leaf_span(leaf.kind, leaf.params, lo, ld);
+        let ray = csg_leaf_ray(leaf, o, d);
+        let span = csg_leaf_span(leaf.kind, leaf.params, ray.o, ray.d);
         if span.ok {
-            slot = CsgSlot(span.t0, span.t1, span.n0, span.n1, leaf.table);
+            slot = CsgSlot(span.t0, span.t1, span.i0 + 4u * span.i1, leaf.table);
         }
     }
     return slot;
@@ -609,38 +617,48 @@ fn csg_fast_holds(s: CsgSpans, x: f32) -> bool {
     return ((word >> (m & 31u)) & 1u) == 1u;
 }
 
-struct CsgBest {
-    t: f32,
-    leaf: u32,
-    // Leaf space, turned to face out of the solid.
-    n: vec3<f32>,
-}
-
-// Takes the span end at t (of leaf `leaf`, its entry when `entry`, normal
-// n) where it is a boundary of the solid in (t_min, best.t).
-fn csg_fast_end(best: ptr<function, CsgBest>, s: CsgSpans, t: f32, n: vec3<f32>, leaf: u32, entry: bool, t_min: f32) {
-    let e = csg_eps(t);
-    let before = csg_fast_holds(s, t - e);
-    let after = csg_fast_holds(s, t + e);
-    if before != after && t > t_min && t < (*best).t {
-        // Entering the solid through a leaf's exit (a subtracted leaf), or
-        // leaving it through an entry: the leaf's normal points inwards.
-        *best = CsgBest(t, leaf, select(n, -n, after != entry));
+// The nearest span end after `after`, CSG_FAR where none.
+fn csg_fast_next(s: CsgSpans, after: f32) -> f32 {
+    let far = vec4<f32>(CSG_FAR);
+    var m = min(select(far, s.lo_a, s.lo_a > vec4<f32>(after)), select(far, s.hi_a, s.hi_a > vec4<f32>(after)));
+    if CSG_FAST_LEAVES > 4u {
+        m = min(m, min(select(far, s.lo_b, s.lo_b > vec4<f32>(after)), select(far, s.hi_b, s.hi_b > vec4<f32>(after))));
     }
+    return min(min(m.x, m.y), min(m.z, m.w));
 }
 
-// Both ends of slot k.
-fn csg_fast_ends(best: ptr<function, CsgBest>, s: CsgSpans, slot: CsgSlot, k: u32, t_min: f32) {
-    csg_fast_end(best, s, slot.lo, slot.n_lo, k, true, t_min);
-    csg_fast_end(best, s, slot.hi, slot.n_hi, k, false, t_min);
+// Of the four slots from `base` (lo, hi), the first end at t (slot order,
+// entry before exit) as slot times 2, plus 1 for an exit; else `code`.
+fn csg_fast_pick4(code: u32, lo: vec4<f32>, hi: vec4<f32>, t: f32, base: u32) -> u32 {
+    var c = code;
+    c = select(c, 2u * base + 7u, hi.w == t);
+    c = select(c, 2u * base + 6u, lo.w == t);
+    c = select(c, 2u * base + 5u, hi.z == t);
+    c = select(c, 2u * base + 4u, lo.z == t);
+    c = select(c, 2u * base + 3u, hi.y == t);
+    c = select(c, 2u * base + 2u, lo.y == t);
+    c = select(c, 2u * base + 1u, hi.x == t);
+    return select(c, 2u * base, lo.x == t);
+}
+
+// The first span end at t, as csg_fast_pick4 gives it.
+fn csg_fast_end_at(s: CsgSpans, t: f32) -> u32 {
+    var code = 0u;
+    if CSG_FAST_LEAVES > 4u {
+        code = csg_fast_pick4(code, s.lo_b, s.hi_b, t, 4u);
+    }
+    return csg_fast_pick4(code, s.lo_a, s.hi_a, t, 0u);
 }
 
 // The closest boundary in (t_min, t_max) of the program whose
 // GpuShape.csg_fast is `fast`, in CSG object space; sets object_material.
+// The span ends are visited nearest first, each classified, until one is a
+// boundary: lanes stop at their first (usually the first or second end)
+// rather than classifying all of them.
 fn intersect_csg_fast(fast: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> ObjectHit {
     let count = fast >> CSG_FAST_COUNT_SHIFT;
     let first = fast & ((1u << CSG_FAST_COUNT_SHIFT) - 1u);
-    let empty = CsgSlot(CSG_FAR, CSG_FAR, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+    let empty = CsgSlot(CSG_FAR, CSG_FAR, 0u, 0u);
     let s0 = csg_fast_slot(0u, count, first, o, d);
     var s1 = empty;
     var s2 = empty;
@@ -678,34 +696,40 @@ fn intersect_csg_fast(fast: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: 
         vec4<u32>(s0.word, s1.word, s2.word, s3.word),
         vec4<u32>(s4.word, s5.word, s6.word, s7.word),
     );
-    var best = CsgBest(min(t_max, CSG_FAR), 0u, vec3<f32>(0.0));
-    csg_fast_ends(&best, s, s0, 0u, t_min);
-    if CSG_FAST_LEAVES > 1u {
-        csg_fast_ends(&best, s, s1, 1u, t_min);
+    let limit = min(t_max, CSG_FAR);
+    var t = t_min;
+    var entering = false;
+    var found = false;
+    // Each step moves to a later end: at most 2 per leaf.
+    for (var step = 0u; step < 2u * CSG_FAST_LEAVES; step++) {
+        t = csg_fast_next(s, t);
+        if t >= limit {
+            break;
+        }
+        let e = csg_eps(t);
+        entering = csg_fast_holds(s, t + e);
+        if csg_fast_holds(s, t - e) != entering {
+            found = true;
+            break;
+        }
     }
-    if CSG_FAST_LEAVES > 2u {
-        csg_fast_ends(&best, s, s2, 2u, t_min);
-    }
-    if CSG_FAST_LEAVES > 3u {
-        csg_fast_ends(&best, s, s3, 3u, t_min);
-    }
-    if CSG_FAST_LEAVES > 4u {
-        csg_fast_ends(&best, s, s4, 4u, t_min);
-    }
-    if CSG_FAST_LEAVES > 5u {
-        csg_fast_ends(&best, s, s5, 5u, t_min);
-    }
-    if CSG_FAST_LEAVES > 6u {
-        csg_fast_ends(&best, s, s6, 6u, t_min);
-    }
-    if CSG_FAST_LEAVES > 7u {
-        csg_fast_ends(&best, s, s7, 7u, t_min);
-    }
-    if best.t >= min(t_max, CSG_FAR) {
+    if !found {
         return no_hit();
     }
-    let leaf = load_csg_leaf(first + best.leaf);
+    let code = csg_fast_end_at(s, t);
+    let slot = code / 2u;
+    let exit = (code & 1u) == 1u;
+    let ends_a = vec4<u32>(s0.ends, s1.ends, s2.ends, s3.ends);
+    let ends_b = vec4<u32>(s4.ends, s5.ends, s6.ends, s7.ends);
+    let which = select(ends_a, ends_b, slot >= 4u)[slot & 3u];
+    let candidate = select(which & 3u, which >> 2u, exit);
+    let leaf = load_csg_leaf(first + slot);
+    let ray = csg_leaf_ray(leaf, o, d);
+    let n_leaf = csg_span_normal(leaf.kind, leaf.params, ray.o, ray.d, candidate, t);
+    // Entering the solid through a leaf's exit (a subtracted leaf), or
+    // leaving it through an entry: the leaf's normal points inwards.
+    let n_out = select(n_leaf, -n_leaf, entering == exit);
     object_material = leaf.material;
-    let n = (leaf.csg_normal_from_leaf * vec4<f32>(best.n, 0.0)).xyz;
-    return ObjectHit(true, best.t, n, n);
+    let n = (leaf.csg_normal_from_leaf * vec4<f32>(n_out, 0.0)).xyz;
+    return ObjectHit(true, t, n, n);
 }
