@@ -149,6 +149,10 @@ fn shadow_query(i: u32, o: vec3<f32>, l: vec3<f32>, receiver: u32, leaving: u32)
     if cell == 0u || cell == leaving + 1u {
         return SHADOW_SKIP;
     }
+    // The cell's own list of its occluders, where it has one.
+    if SHADOW_LISTS && cell != CULL_CELL_MANY && (cell & CULL_CELL_LIST) != 0u {
+        return cell & ~CULL_CELL_LIST;
+    }
     if SHADOW_LISTS && c.first_list != 0u && receiver != NO_HIT {
         let r = c.first_list + receiver * SHADOW_LIST_WORDS;
         if shadow_cells[r] != SHADOW_LIST_WALK {
@@ -209,7 +213,14 @@ fn list_blocks(r: u32, o: vec3<f32>, l: vec3<f32>, t_max: f32, leaving: u32, sph
         let inst = load_instance(j);
         let s = load_shape(inst.shape);
         let m = inst.object_from_world;
-        if intersect_analytic(s.kind, s.params, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(l, 0.0)).xyz, 0.0, t_max).hit {
+        let lo = (m * vec4<f32>(o, 1.0)).xyz;
+        let ld = (m * vec4<f32>(l, 0.0)).xyz;
+        // A cell's list may hold CSG solids evaluated by their truth table.
+        if CSG_FAST_LEAVES > 0u && s.kind == SHAPE_CSG {
+            if csg_bound_may_hit(s.params, lo, ld, 0.0, t_max) && intersect_csg_fast(s.csg_fast, lo, ld, 0.0, t_max).hit {
+                return true;
+            }
+        } else if intersect_analytic(s.kind, s.params, lo, ld, 0.0, t_max).hit {
             return true;
         }
     }

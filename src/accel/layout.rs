@@ -34,6 +34,12 @@ pub const SHADOW_CULL_CELLS: u32 = 128;
 /// A shadow-cull cell that several occluders, or one that is not convex,
 /// land on (0: none; k + 1: only instance k, a sphere or a box).
 pub const CULL_CELL_MANY: u32 = u32::MAX;
+/// A shadow-cull cell whose occluders are all listed: the word is this bit
+/// plus the index in `shadow_cells` of their list (a header as an occluder
+/// list's, then the instances; [`SHADOW_LIST_CONVEX`] where every one is a
+/// sphere or a box), which a shadow ray starting in the cell tests instead
+/// of walking the BVH.
+pub const CULL_CELL_LIST: u32 = 1 << 31;
 /// Planes per light whose shadow rays are tested against them exactly.
 pub const MAX_CULL_PLANES: u32 = 4;
 /// Words of one receiver's record in a light's occluder lists (in

@@ -15,6 +15,11 @@
 //! (the kernel only casts towards lights a surface faces) when that solid
 //! is all its cell holds: a convex solid lies wholly behind its tangent
 //! plane, and the ray starts in front of it, offset along the normal.
+//! Where one sun casts shadows (the lists below), a cell whose occluders
+//! are all static analytic shapes or CSG solids evaluated by their truth
+//! table, at most [`SHADOW_LIST_MAX`], points at their list instead
+//! ([`CULL_CELL_LIST`]): a ray starting there tests just them, however
+//! its receiver is made (the floor, a mesh, a CSG solid).
 //!
 //! Flat floors and walls would cover the whole grid, so static quads and
 //! disks (up to [`MAX_CULL_PLANES`], the largest first) are kept out of it
@@ -33,9 +38,9 @@ use glam::{Vec2, Vec3, Vec4Swizzles};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
-    GpuShadowCull, CULL_CELL_MANY, MAX_CULL_PLANES, SHADOW_CULL_CELLS, SHADOW_LIST_CONVEX,
-    SHADOW_LIST_MAX, SHADOW_LIST_WALK, SHADOW_LIST_WORDS, SHAPE_BOX, SHAPE_CSG, SHAPE_DISK,
-    SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
+    GpuShadowCull, CULL_CELL_LIST, CULL_CELL_MANY, MAX_CULL_PLANES, SHADOW_CULL_CELLS,
+    SHADOW_LIST_CONVEX, SHADOW_LIST_MAX, SHADOW_LIST_WALK, SHADOW_LIST_WORDS, SHAPE_BOX, SHAPE_CSG,
+    SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
 };
 use crate::accel::SceneAccel;
 use crate::scene::Light;
@@ -46,6 +51,10 @@ pub const PLANE_MARGIN: f32 = 1e-5;
 
 /// Cells of one light's grid in [`ShadowCull::cells`].
 pub const CELLS_PER_LIGHT: usize = (SHADOW_CULL_CELLS * SHADOW_CULL_CELLS) as usize;
+/// Words after the bounding spheres for the cells' lists of the one light
+/// that has lists: a full list (header and [`SHADOW_LIST_MAX`] instances)
+/// in every cell at most.
+pub const CELL_LIST_ROOM: usize = CELLS_PER_LIGHT * SHADOW_LIST_WORDS as usize;
 
 /// What the trace pass reads: one [`GpuShadowCull`] per light (at least
 /// one); [`CELLS_PER_LIGHT`] cells for each of the first
@@ -115,6 +124,14 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
                 .flat_map(|k| bounding_sphere(accel, k).to_array().map(f32::to_bits)),
         );
     }
+    // Then room for one light's cell lists (only one light has lists: a
+    // lone shadow-casting sun), whatever the light's direction, so that
+    // light edits rewrite the buffer in place: at most a header and
+    // SHADOW_LIST_MAX instances per cell.
+    let first_cell_list = cells.len();
+    if per_light > 0 {
+        cells.resize(first_cell_list + CELL_LIST_ROOM, 0);
+    }
     let mut out = ShadowCull {
         lights: vec![bytemuck::Zeroable::zeroed(); lights.len().max(1)],
         cells,
@@ -130,9 +147,19 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
         {
             let to_light = -direction.normalize();
             let cells = &mut out.cells[i * CELLS_PER_LIGHT..][..CELLS_PER_LIGHT];
-            let Some((mut cull, pad)) = directional(to_light, &boxes, cells) else {
+            let Some((mut cull, pad, cell_lists)) = directional(to_light, &boxes, cells) else {
                 continue;
             };
+            // Each cell whose occluders are all listed points at their
+            // list, after everything else (where the kernel reads lists).
+            if fill {
+                let mut at = first_cell_list;
+                for list in cell_lists {
+                    out.cells[i * CELLS_PER_LIGHT + list.cell] = CULL_CELL_LIST | at as u32;
+                    out.cells[at..][..list.words.len()].copy_from_slice(&list.words);
+                    at += list.words.len();
+                }
+            }
             cull.first_cell = (i * CELLS_PER_LIGHT) as u32;
             cull.plane_count = planes.len() as u32;
             for (slot, row) in cull.planes.iter_mut().zip(&planes) {
@@ -165,6 +192,10 @@ struct Occluder {
     /// own (empty: the box or sphere stands for the occluder).
     triangles: Vec<[Vec3; 3]>,
     tag: u32,
+    /// Whether a cell's list may hold it: the list test intersects it as
+    /// the walk does (a static analytic shape, or a CSG solid evaluated by
+    /// its truth table, `GpuShape::csg_fast`).
+    listable: bool,
 }
 
 /// Mesh triangles projected one by one, in all instances together: past
@@ -238,6 +269,10 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
                 kind: shape.kind,
                 bounds: accel.world_bounds[k],
                 sphere: sphere.map(|(c, r)| (c, r, world_from_object)),
+                listable: triangles.is_empty()
+                    && !accel.moving[k]
+                    && shape.kind != SHAPE_MESH
+                    && (shape.kind != SHAPE_CSG || shape.csg_fast != 0),
                 triangles,
                 tag: if convex { k as u32 + 1 } else { CULL_CELL_MANY },
             }
@@ -366,10 +401,10 @@ fn directional(
     to_light: Vec3,
     boxes: &[Occluder],
     cells: &mut [u32],
-) -> Option<(GpuShadowCull, f32)> {
+) -> Option<(GpuShadowCull, f32, Vec<CellList>)> {
     let (u, v) = axes(to_light);
     if boxes.is_empty() {
-        return Some((cull_record(u, v, Vec2::ZERO, 0.0, [0, 0]), 0.0));
+        return Some((cull_record(u, v, Vec2::ZERO, 0.0, [0, 0]), 0.0, Vec::new()));
     }
     // The margin covers a ray drifting off its projection over the scene
     // (l is only nearly perpendicular to u and v in f32) and the rounding
@@ -390,9 +425,11 @@ fn directional(
             hi: hi + pad,
             circle: None,
         };
-        (rect, CULL_CELL_MANY)
+        (rect, CULL_CELL_MANY, None)
     };
-    let mut footprints: Vec<(Footprint, u32)> = boxes
+    // Each footprint with its cell word and the occluder a cell's list
+    // would hold for it (None: a cell it lands on walks).
+    let mut footprints: Vec<(Footprint, u32, Option<&Occluder>)> = boxes
         .iter()
         .flat_map(|b| b.triangles.iter().map(triangle_rect))
         .collect();
@@ -400,7 +437,7 @@ fn directional(
         boxes
             .iter()
             .filter(|b| b.triangles.is_empty())
-            .map(|b| (footprint(b, u, v, pad), b.tag)),
+            .map(|b| (footprint(b, u, v, pad), b.tag, b.listable.then_some(b))),
     );
     let lo = footprints
         .iter()
@@ -424,7 +461,10 @@ fn directional(
             (c.y.max(0.0) as u32).min(dims[1] - 1),
         ]
     };
-    for (f, tag) in footprints {
+    // Per cell, the occluders landing on it while all are listable and at
+    // most SHADOW_LIST_MAX (None from the first that is not).
+    let mut occupants: Vec<Option<Vec<&Occluder>>> = vec![Some(Vec::new()); cells.len()];
+    for (f, tag, listed) in footprints {
         let (from, to) = (cell_of(f.lo), cell_of(f.hi));
         for y in from[1]..=to[1] {
             for x in from[0]..=to[0] {
@@ -436,12 +476,42 @@ fn directional(
                         continue;
                     }
                 }
-                let cell = &mut cells[(y * dims[0] + x) as usize];
+                let at = (y * dims[0] + x) as usize;
+                let cell = &mut cells[at];
                 *cell = if *cell == 0 { tag } else { CULL_CELL_MANY };
+                let fits = occupants[at]
+                    .as_ref()
+                    .is_some_and(|o| o.len() < SHADOW_LIST_MAX as usize);
+                match listed {
+                    Some(b) if fits => occupants[at].as_mut().into_iter().for_each(|o| o.push(b)),
+                    _ => occupants[at] = None,
+                }
             }
         }
     }
-    Some((cull_record(u, v, lo, per_unit, dims), pad))
+    let lists = occupants
+        .into_iter()
+        .enumerate()
+        .filter_map(|(cell, o)| {
+            let o = o.filter(|o| !o.is_empty())?;
+            let convex = o
+                .iter()
+                .all(|b| b.kind == SHAPE_SPHERE || b.kind == SHAPE_BOX);
+            let header = o.len() as u32 | if convex { SHADOW_LIST_CONVEX } else { 0 };
+            let mut words = vec![header];
+            words.extend(o.iter().map(|b| b.instance));
+            Some(CellList { cell, words })
+        })
+        .collect();
+    Some((cull_record(u, v, lo, per_unit, dims), pad, lists))
+}
+
+/// The list of the occluders of one cell of a light's grid: its index in
+/// the grid and its words (a header as an occluder list's, then the
+/// instances).
+struct CellList {
+    cell: usize,
+    words: Vec<u32>,
 }
 
 /// Every instance's occluder list for the directional light towards
@@ -661,7 +731,50 @@ pub fn may_be_blocked(
         return true;
     }
     let cell = cells[(cull.first_cell + g.y as u32 * cull.dims[0] + g.x as u32) as usize];
+    if let Some((list, convex)) = list_at_cell(cells, cell) {
+        // The kernel's list test skips the lone convex solid left.
+        return list.iter().any(|&j| !(convex && j == leaving));
+    }
     cell != 0 && cell != leaving.wrapping_add(1)
+}
+
+/// The occluders of a cell whose word is a list ([`CULL_CELL_LIST`]), and
+/// whether all are spheres or boxes.
+fn list_at_cell(cells: &[u32], cell: u32) -> Option<(&[u32], bool)> {
+    if cell == CULL_CELL_MANY || cell & CULL_CELL_LIST == 0 {
+        return None;
+    }
+    let at = (cell & !CULL_CELL_LIST) as usize;
+    let count = (cells[at] & (SHADOW_LIST_CONVEX - 1)) as usize;
+    Some((
+        &cells[at + 1..][..count],
+        cells[at] & SHADOW_LIST_CONVEX != 0,
+    ))
+}
+
+/// The CPU twin of the cell half of the trace kernel's `shadow_query`:
+/// where the cell the shadow ray from `origin` starts in lists its
+/// occluders, those instances and whether all are convex (then the one a
+/// ray leaves from is skipped); None where the ray is culled, answered by
+/// its receiver's list or walks.
+pub fn cell_occluders<'a>(
+    cull: &GpuShadowCull,
+    cells: &'a [u32],
+    origin: Vec3,
+) -> Option<(&'a [u32], bool)> {
+    if cull.enabled == 0 {
+        return None;
+    }
+    let u = glam::Vec4::from_array(cull.u);
+    let v = glam::Vec4::from_array(cull.v);
+    let g = Vec2::new(u.xyz().dot(origin) - u.w, v.xyz().dot(origin) - v.w)
+        * Vec2::from_array(cull.cells_per_unit);
+    let dims = Vec2::new(cull.dims[0] as f32, cull.dims[1] as f32);
+    if !(g.x >= 0.0 && g.y >= 0.0 && g.x < dims.x && g.y < dims.y) {
+        return None;
+    }
+    let cell = cells[(cull.first_cell + g.y as u32 * cull.dims[0] + g.x as u32) as usize];
+    list_at_cell(cells, cell)
 }
 
 /// The CPU twin of the list half of the trace kernel's `shadow_query`:
@@ -1007,7 +1120,8 @@ mod tests {
         let cull = build(&accel, &scene.lights, true);
         assert_eq!(cull.lights.len(), 3);
         let lists = accel.instances.len() * SHADOW_LIST_WORDS as usize;
-        let spheres = 4 * accel.instances.len();
+        // The bounding spheres, then the room for one light's cell lists.
+        let spheres = 4 * accel.instances.len() + CELL_LIST_ROOM;
         assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists) + spheres);
         assert!(!lists_read(&accel, &scene.lights));
         assert_eq!(cull.lights[0].first_list, 0, "two lights cast shadows");
@@ -1021,6 +1135,22 @@ mod tests {
         }
         assert!(lists_read(&accel, &one_sun));
         let cull = build(&accel, &one_sun, true);
+        // After the grids, lists and spheres: room for the sun's cell lists.
+        let cell_words: usize = cull.cells[..CELLS_PER_LIGHT]
+            .iter()
+            .filter_map(|&w| list_at_cell(&cull.cells, w))
+            .map(|(list, _)| 1 + list.len())
+            .sum();
+        assert!(cell_words > 0, "the sun's cells list their occluders");
+        let room = 3 * (CELLS_PER_LIGHT + lists) + 4 * accel.instances.len();
+        for &w in &cull.cells[..CELLS_PER_LIGHT] {
+            if list_at_cell(&cull.cells, w).is_some() {
+                assert!(
+                    (w & !CULL_CELL_LIST) as usize >= room,
+                    "a list outside its room"
+                );
+            }
+        }
         assert_eq!(cull.cells.len(), 3 * (CELLS_PER_LIGHT + lists) + spheres);
         assert_eq!(cull.lights[0].first_list as usize, 3 * CELLS_PER_LIGHT);
         assert_eq!(
@@ -1093,6 +1223,77 @@ mod tests {
         let order: Vec<usize> = (0..scene.instances.len()).collect();
         let accel = SceneAccel::build(&scene, &order).unwrap();
         (scene, accel)
+    }
+
+    /// The same property for the cells' lists: a shadow ray starting in a
+    /// cell that lists its occluders (here from the floor, 0 to 9 units
+    /// across the solids, and from the solids' own surfaces, offset as the
+    /// kernel offsets it) can only meet instances of that list, and never
+    /// the convex solid it leaves where the list is all convex. The CPU
+    /// tracer's closest hit along each ray must be listed. It fails if a
+    /// cell's list misses an occluder whose footprint lands on it (a wrong
+    /// cell index, footprint or margin), or a list points at the wrong
+    /// words. The cow's triangles make their cells walk, and the CSG solid
+    /// (evaluated by its truth table) is listed.
+    #[test]
+    fn a_shadow_ray_meets_only_its_cells_occluders() {
+        let (scene, accel) = packed_scene();
+        let cull = build(&accel, &scene.lights, true);
+        let c = &cull.lights[0];
+        let l = Vec3::new(0.6, 1.0, 0.4).normalize();
+        let (lo, hi) = scene.bounds();
+        let eps = (hi - lo).length() * 0.5 * 1e-4;
+        // Shadow ray origins: (origin, the instance it leaves or MAX).
+        let mut origins: Vec<(Vec3, u32)> = Vec::new();
+        for i in 0..120 {
+            for j in 0..120 {
+                let (x, z) = (-1.5 + 0.09 * i as f32, -1.5 + 0.09 * j as f32);
+                origins.push((Vec3::new(x, eps, z), u32::MAX));
+            }
+        }
+        for k in 0..accel.instances.len() as u32 {
+            let b = accel.world_bounds[k as usize];
+            let centre = (b.min + b.max) * 0.5;
+            for d in points(300, 1.0) {
+                let d = d.normalize_or(Vec3::Y);
+                let from = centre + d * 3.0;
+                let Some(h) = accel.closest_hit(from, -d, 0.0, 10.0).hit else {
+                    continue;
+                };
+                if h.instance == k && h.geometric.dot(l) > 0.0 {
+                    origins.push((from - d * h.t + h.geometric * eps, k));
+                }
+            }
+        }
+        let (mut listed, mut blocked, mut by_csg) = (0, 0, 0);
+        for (o, leaving) in origins {
+            let Some((list, convex)) = cell_occluders(c, &cull.cells, o) else {
+                continue;
+            };
+            listed += 1;
+            let Some(hit) = accel.closest_hit(o, l, 0.0, f32::INFINITY).hit else {
+                continue;
+            };
+            blocked += 1;
+            by_csg += usize::from(hit.instance == 1);
+            assert!(
+                list.contains(&hit.instance),
+                "the shadow ray from {o} meets {} outside its cell's list {list:?}",
+                hit.instance
+            );
+            assert!(
+                !(convex && hit.instance == leaving),
+                "the ray leaving convex instance {leaving} meets it"
+            );
+        }
+        let lists = (0..CELLS_PER_LIGHT)
+            .filter(|&i| list_at_cell(&cull.cells, cull.cells[i]).is_some())
+            .count();
+        assert!(lists >= 500, "{lists} cells have lists");
+        assert!(
+            listed >= 5000 && blocked >= 1000 && by_csg >= 20,
+            "{listed} rays start in listed cells, {blocked} of them blocked, {by_csg} by the CSG solid"
+        );
     }
 
     /// The property the kernel's list test relies on: a shadow ray from the
@@ -1171,8 +1372,9 @@ mod tests {
     /// A list is never given where the kernel could not answer it: a
     /// receiver next to the CSG solid or the mesh, and the mesh and the
     /// CSG solid themselves, walk; the floor (a plane tested exactly) has
-    /// none; lists hold analytic instances only. Without lists every
-    /// record walks.
+    /// none; lists hold analytic instances only, and cells' lists never the
+    /// mesh. Without lists every record walks, and the grid differs only
+    /// where a cell points at its list.
     #[test]
     fn meshes_and_csg_solids_keep_the_walk() {
         let (scene, accel) = packed_scene();
@@ -1195,10 +1397,24 @@ mod tests {
             assert!(occluder_list(c, &cull.cells, k).is_none(), "instance {k}");
         }
         assert!(walks >= 4, "{walks} receivers walk");
+        // The cells' lists never hold the cow (instance 2), whose
+        // triangles' cells walk.
+        for &w in &cull.cells[..CELLS_PER_LIGHT] {
+            if let Some((list, _)) = list_at_cell(&cull.cells, w) {
+                assert!(!list.contains(&2), "a cell lists the mesh");
+            }
+        }
         let off = build(&accel, &scene.lights, false);
         assert_eq!(off.lights[0].first_list, 0);
         assert_eq!(off.cells.len(), CELLS_PER_LIGHT);
-        assert_eq!(off.cells, cull.cells[..CELLS_PER_LIGHT]);
+        // With lists, a cell's word is the same, or points at its list
+        // where something lands on it.
+        for (i, (&without, &with)) in off.cells.iter().zip(&cull.cells).enumerate() {
+            assert!(
+                with == without || (without != 0 && list_at_cell(&cull.cells, with).is_some()),
+                "cell {i}: {without:#x} without lists, {with:#x} with"
+            );
+        }
     }
 
     /// Under a light straight overhead, sphere A (radius 0.5 at the

@@ -59,6 +59,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("SHADOW_LIST_WORDS", twins::SHADOW_LIST_WORDS),
         ("SHADOW_LIST_WALK", twins::SHADOW_LIST_WALK),
         ("SHADOW_LIST_CONVEX", twins::SHADOW_LIST_CONVEX),
+        ("CULL_CELL_LIST", twins::CULL_CELL_LIST),
         ("PRIMARY_TILE_WORDS", twins::PRIMARY_TILE_WORDS),
         ("INSTANCE_ID_BITS", twins::INSTANCE_ID_BITS),
         ("PRIMARY_TILE_WALK", twins::PRIMARY_TILE_WALK),
