@@ -424,17 +424,6 @@ fn csg_nearest_after(t: vec4<f32>, ok: vec4<bool>, after: f32) -> u32 {
     return select(best, 3u, take);
 }
 
-fn csg_box_normal(p: vec3<f32>) -> vec3<f32> {
-    let a = abs(p);
-    var n = vec3<f32>(0.0, 0.0, sign(p.z));
-    if a.x >= a.y && a.x >= a.z {
-        n = vec3<f32>(sign(p.x), 0.0, 0.0);
-    } else if a.y >= a.z {
-        n = vec3<f32>(0.0, sign(p.y), 0.0);
-    }
-    return n;
-}
-
 // The outward normal of candidate i (csg_leaf_span's order) at t: the
 // intersect function's normal there.
 fn csg_span_normal(kind: u32, p4: vec4<f32>, o: vec3<f32>, d: vec3<f32>, i: u32, t: f32) -> vec3<f32> {
@@ -444,7 +433,7 @@ fn csg_span_normal(kind: u32, p4: vec4<f32>, o: vec3<f32>, d: vec3<f32>, i: u32,
             return p / p4.x;
         }
         case SHAPE_BOX: {
-            return csg_box_normal(p / p4.xyz);
+            return box_normal(p / p4.xyz);
         }
         case SHAPE_CYLINDER: {
             if i < 2u {

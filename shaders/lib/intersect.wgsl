@@ -70,7 +70,12 @@ fn intersect_box(o: vec3<f32>, d: vec3<f32>, h: vec3<f32>, t_min: f32, t_max: f3
             return no_hit();
         }
     }
-    let p = (o + d * t) / h;
+    return object_hit(t, box_normal((o + d * t) / h));
+}
+
+// The outward normal of the unit box at p (box space divided by the half
+// extents): the axis p is farthest along.
+fn box_normal(p: vec3<f32>) -> vec3<f32> {
     let a = abs(p);
     var n = vec3<f32>(0.0, 0.0, sign(p.z));
     if a.x >= a.y && a.x >= a.z {
@@ -78,7 +83,7 @@ fn intersect_box(o: vec3<f32>, d: vec3<f32>, h: vec3<f32>, t_min: f32, t_max: f3
     } else if a.y >= a.z {
         n = vec3<f32>(0.0, sign(p.y), 0.0);
     }
-    return object_hit(t, n);
+    return n;
 }
 
 fn intersect_cylinder(o: vec3<f32>, d: vec3<f32>, r: f32, height: f32, t_min: f32, t_max: f32) -> ObjectHit {

@@ -1225,6 +1225,17 @@ mod tests {
         (scene, accel)
     }
 
+    /// The packed scene with its lists, the direction towards its sun, and
+    /// the offset along the normal that the kernel gives a shadow ray
+    /// (1e-4 of the scene's half diagonal).
+    fn packed_with_lists() -> (SceneAccel, ShadowCull, Vec3, f32) {
+        let (scene, accel) = packed_scene();
+        let cull = build(&accel, &scene.lights, true);
+        let (lo, hi) = scene.bounds();
+        let eps = (hi - lo).length() * 0.5 * 1e-4;
+        (accel, cull, Vec3::new(0.6, 1.0, 0.4).normalize(), eps)
+    }
+
     /// The same property for the cells' lists: a shadow ray starting in a
     /// cell that lists its occluders (here from the floor, 0 to 9 units
     /// across the solids, and from the solids' own surfaces, offset as the
@@ -1237,12 +1248,8 @@ mod tests {
     /// (evaluated by its truth table) is listed.
     #[test]
     fn a_shadow_ray_meets_only_its_cells_occluders() {
-        let (scene, accel) = packed_scene();
-        let cull = build(&accel, &scene.lights, true);
+        let (accel, cull, l, eps) = packed_with_lists();
         let c = &cull.lights[0];
-        let l = Vec3::new(0.6, 1.0, 0.4).normalize();
-        let (lo, hi) = scene.bounds();
-        let eps = (hi - lo).length() * 0.5 * 1e-4;
         // Shadow ray origins: (origin, the instance it leaves or MAX).
         let mut origins: Vec<(Vec3, u32)> = Vec::new();
         for i in 0..120 {
@@ -1308,12 +1315,8 @@ mod tests {
     /// instance.
     #[test]
     fn a_shadow_ray_meets_only_its_receivers_occluders() {
-        let (scene, accel) = packed_scene();
-        let cull = build(&accel, &scene.lights, true);
+        let (accel, cull, l, eps) = packed_with_lists();
         let c = &cull.lights[0];
-        let l = Vec3::new(0.6, 1.0, 0.4).normalize();
-        let (lo, hi) = scene.bounds();
-        let eps = (hi - lo).length() * 0.5 * 1e-4;
         let dirs = points(1000, 1.0);
         let (mut listed, mut long_lists, mut by_others, mut from_inside) = (0, 0, 0, 0);
         for k in 0..accel.instances.len() as u32 {
