@@ -224,6 +224,25 @@ fn list_blocks(r: u32, o: vec3<f32>, l: vec3<f32>, t_max: f32, leaving: u32, sph
             return true;
         }
     }
+    // A cell's list may go on with triangles of one static mesh: its
+    // instance, then their indices, each tested as the mesh walk tests it
+    // (the mesh's object space, the shear of its root's bounds).
+    let triangles = header >> CELL_LIST_TRIANGLE_SHIFT;
+    if MESHES_ENABLED && triangles != 0u {
+        let at = r + 1u + (header & (SHADOW_LIST_CONVEX - 1u));
+        let inst = load_instance(shadow_cells[at]);
+        let m = inst.object_from_world;
+        let root = load_node(load_shape(inst.shape).blas_root);
+        let ray = triangle_ray((m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(l, 0.0)).xyz, root.bounds_min, root.bounds_max);
+        for (var k = 0u; k < triangles; k++) {
+            if !take_step() {
+                return false;
+            }
+            if triangle_tuv(ray, shadow_cells[at + 1u + k], 0.0, t_max).w != 0.0 {
+                return true;
+            }
+        }
+    }
     return false;
 }
 

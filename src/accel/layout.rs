@@ -40,6 +40,9 @@ pub const CULL_CELL_MANY: u32 = u32::MAX;
 /// sphere or a box), which a shadow ray starting in the cell tests instead
 /// of walking the BVH.
 pub const CULL_CELL_LIST: u32 = 1 << 31;
+/// A cell list's header holds, from this bit, how many triangles of one
+/// static mesh follow its whole occluders (after the mesh's instance).
+pub const CELL_LIST_TRIANGLE_SHIFT: u32 = 8;
 /// Planes per light whose shadow rays are tested against them exactly.
 pub const MAX_CULL_PLANES: u32 = 4;
 /// Words of one receiver's record in a light's occluder lists (in

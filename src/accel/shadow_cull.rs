@@ -38,9 +38,9 @@ use glam::{Vec2, Vec3, Vec4Swizzles};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
-    GpuShadowCull, CULL_CELL_LIST, CULL_CELL_MANY, MAX_CULL_PLANES, SHADOW_CULL_CELLS,
-    SHADOW_LIST_CONVEX, SHADOW_LIST_MAX, SHADOW_LIST_WALK, SHADOW_LIST_WORDS, SHAPE_BOX, SHAPE_CSG,
-    SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
+    GpuShadowCull, CELL_LIST_TRIANGLE_SHIFT, CULL_CELL_LIST, CULL_CELL_MANY, MAX_CULL_PLANES,
+    SHADOW_CULL_CELLS, SHADOW_LIST_CONVEX, SHADOW_LIST_MAX, SHADOW_LIST_WALK, SHADOW_LIST_WORDS,
+    SHAPE_BOX, SHAPE_CSG, SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
 };
 use crate::accel::SceneAccel;
 use crate::scene::Light;
@@ -55,6 +55,8 @@ pub const CELLS_PER_LIGHT: usize = (SHADOW_CULL_CELLS * SHADOW_CULL_CELLS) as us
 /// that has lists: a full list (header and [`SHADOW_LIST_MAX`] instances)
 /// in every cell at most.
 pub const CELL_LIST_ROOM: usize = CELLS_PER_LIGHT * SHADOW_LIST_WORDS as usize;
+/// The most triangles (of one static mesh) a cell's list holds.
+pub const CELL_LIST_TRIANGLES: u32 = 64;
 
 /// What the trace pass reads: one [`GpuShadowCull`] per light (at least
 /// one); [`CELLS_PER_LIGHT`] cells for each of the first
@@ -153,8 +155,13 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
             // Each cell whose occluders are all listed points at their
             // list, after everything else (where the kernel reads lists).
             if fill {
+                // Cells past the room keep their word (they walk).
+                let end = first_cell_list + CELL_LIST_ROOM;
                 let mut at = first_cell_list;
                 for list in cell_lists {
+                    if at + list.words.len() > end {
+                        break;
+                    }
                     out.cells[i * CELLS_PER_LIGHT + list.cell] = CULL_CELL_LIST | at as u32;
                     out.cells[at..][..list.words.len()].copy_from_slice(&list.words);
                     at += list.words.len();
@@ -189,8 +196,9 @@ struct Occluder {
     bounds: Aabb,
     sphere: Option<(Vec3, f32, glam::Mat4)>,
     /// A static mesh's triangles in world space, each projected on its
-    /// own (empty: the box or sphere stands for the occluder).
-    triangles: Vec<[Vec3; 3]>,
+    /// own, with their indices in the triangle buffer (empty: the box or
+    /// sphere stands for the occluder).
+    triangles: Vec<(u32, [Vec3; 3])>,
     tag: u32,
     /// Whether a cell's list may hold it: the list test intersects it as
     /// the walk does (a static analytic shape, or a CSG solid evaluated by
@@ -202,8 +210,9 @@ struct Occluder {
 /// this budget a mesh instance's box stands for it.
 pub const MAX_FOOTPRINT_TRIANGLES: usize = 1 << 18;
 
-/// The triangles (object space) of the bottom-level BVH rooted at `root`.
-fn mesh_triangles(accel: &SceneAccel, root: u32) -> Vec<[Vec3; 3]> {
+/// The triangles (object space) of the bottom-level BVH rooted at `root`,
+/// with their indices in `accel.triangles`.
+fn mesh_triangles(accel: &SceneAccel, root: u32) -> Vec<(u32, [Vec3; 3])> {
     let mut out = Vec::new();
     let mut stack = vec![root];
     while let Some(i) = stack.pop() {
@@ -212,8 +221,9 @@ fn mesh_triangles(accel: &SceneAccel, root: u32) -> Vec<[Vec3; 3]> {
             stack.extend([node.left_or_first, node.left_or_first + 1]);
             continue;
         }
-        for t in &accel.triangles[node.left_or_first as usize..][..node.count as usize] {
-            out.push([t.p0, t.p1, t.p2].map(|p| Vec3::from_slice(&p[..3])));
+        for k in node.left_or_first..node.left_or_first + node.count {
+            let t = &accel.triangles[k as usize];
+            out.push((k, [t.p0, t.p1, t.p2].map(|p| Vec3::from_slice(&p[..3]))));
         }
     }
     out
@@ -252,7 +262,7 @@ fn split_occluders(accel: &SceneAccel) -> (Vec<[f32; 4]>, Vec<Occluder>) {
                     budget -= mesh.len();
                     triangles = mesh
                         .into_iter()
-                        .map(|t| t.map(|p| world_from_object.transform_point3(p)))
+                        .map(|(k, t)| (k, t.map(|p| world_from_object.transform_point3(p))))
                         .collect();
                 }
             }
@@ -418,27 +428,29 @@ fn directional(
     // Each occluder's footprint across the light. A static mesh within
     // the budget: one rectangle per triangle (a ray meets a triangle only
     // where it starts inside the triangle's projection).
-    let triangle_rect = |t: &[Vec3; 3]| {
+    let triangle_rect = |b: &Occluder, (k, t): &(u32, [Vec3; 3])| {
         let (lo, hi) = project(u, v, t);
         let rect = Footprint {
             lo: lo - pad,
             hi: hi + pad,
             circle: None,
         };
-        (rect, CULL_CELL_MANY, None)
+        (
+            rect,
+            CULL_CELL_MANY,
+            Some(Landing::Triangle(b.instance, *k)),
+        )
     };
-    // Each footprint with its cell word and the occluder a cell's list
-    // would hold for it (None: a cell it lands on walks).
-    let mut footprints: Vec<(Footprint, u32, Option<&Occluder>)> = boxes
+    // Each footprint with its cell word and what a cell's list would hold
+    // for it (None: a cell it lands on walks).
+    let mut footprints: Vec<(Footprint, u32, Option<Landing>)> = boxes
         .iter()
-        .flat_map(|b| b.triangles.iter().map(triangle_rect))
+        .flat_map(|b| b.triangles.iter().map(move |t| triangle_rect(b, t)))
         .collect();
-    footprints.extend(
-        boxes
-            .iter()
-            .filter(|b| b.triangles.is_empty())
-            .map(|b| (footprint(b, u, v, pad), b.tag, b.listable.then_some(b))),
-    );
+    footprints.extend(boxes.iter().filter(|b| b.triangles.is_empty()).map(|b| {
+        let landing = b.listable.then_some(Landing::Whole(b));
+        (footprint(b, u, v, pad), b.tag, landing)
+    }));
     let lo = footprints
         .iter()
         .fold(Vec2::splat(f32::INFINITY), |a, r| a.min(r.0.lo));
@@ -461,9 +473,9 @@ fn directional(
             (c.y.max(0.0) as u32).min(dims[1] - 1),
         ]
     };
-    // Per cell, the occluders landing on it while all are listable and at
-    // most SHADOW_LIST_MAX (None from the first that is not).
-    let mut occupants: Vec<Option<Vec<&Occluder>>> = vec![Some(Vec::new()); cells.len()];
+    // Per cell, what lands on it while all of it can be listed (None from
+    // the first that cannot).
+    let mut occupants: Vec<Option<Occupants>> = vec![Some(Occupants::default()); cells.len()];
     for (f, tag, listed) in footprints {
         let (from, to) = (cell_of(f.lo), cell_of(f.hi));
         for y in from[1]..=to[1] {
@@ -479,12 +491,12 @@ fn directional(
                 let at = (y * dims[0] + x) as usize;
                 let cell = &mut cells[at];
                 *cell = if *cell == 0 { tag } else { CULL_CELL_MANY };
-                let fits = occupants[at]
-                    .as_ref()
-                    .is_some_and(|o| o.len() < SHADOW_LIST_MAX as usize);
-                match listed {
-                    Some(b) if fits => occupants[at].as_mut().into_iter().for_each(|o| o.push(b)),
-                    _ => occupants[at] = None,
+                let kept = match (&mut occupants[at], listed) {
+                    (Some(o), Some(landing)) => o.add(landing),
+                    _ => false,
+                };
+                if !kept {
+                    occupants[at] = None;
                 }
             }
         }
@@ -493,22 +505,77 @@ fn directional(
         .into_iter()
         .enumerate()
         .filter_map(|(cell, o)| {
-            let o = o.filter(|o| !o.is_empty())?;
-            let convex = o
-                .iter()
-                .all(|b| b.kind == SHAPE_SPHERE || b.kind == SHAPE_BOX);
-            let header = o.len() as u32 | if convex { SHADOW_LIST_CONVEX } else { 0 };
-            let mut words = vec![header];
-            words.extend(o.iter().map(|b| b.instance));
-            Some(CellList { cell, words })
+            let o = o.filter(|o| !o.whole.is_empty() || o.mesh.is_some())?;
+            Some(CellList {
+                cell,
+                words: o.words(),
+            })
         })
         .collect();
     Some((cull_record(u, v, lo, per_unit, dims), pad, lists))
 }
 
+/// What lands on a grid cell: a whole occluder, or one triangle of a
+/// static mesh (its instance and its index in the triangle buffer).
+#[derive(Clone, Copy)]
+enum Landing<'a> {
+    Whole(&'a Occluder),
+    Triangle(u32, u32),
+}
+
+/// What a cell's list holds: up to [`SHADOW_LIST_MAX`] whole occluders and
+/// up to [`CELL_LIST_TRIANGLES`] triangles of one mesh instance.
+#[derive(Clone, Default)]
+struct Occupants<'a> {
+    whole: Vec<&'a Occluder>,
+    mesh: Option<u32>,
+    triangles: Vec<u32>,
+}
+
+impl<'a> Occupants<'a> {
+    /// Adds what landed; false where the list cannot hold it.
+    fn add(&mut self, landing: Landing<'a>) -> bool {
+        match landing {
+            Landing::Whole(b) if self.whole.len() < SHADOW_LIST_MAX as usize => {
+                self.whole.push(b);
+                true
+            }
+            Landing::Triangle(instance, k)
+                if self.mesh.is_none_or(|m| m == instance)
+                    && self.triangles.len() < CELL_LIST_TRIANGLES as usize =>
+            {
+                self.mesh = Some(instance);
+                self.triangles.push(k);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The list's words: a header (the whole occluders' count, as an
+    /// occluder list's, [`SHADOW_LIST_CONVEX`] where all are spheres or
+    /// boxes, and the triangles' count from [`CELL_LIST_TRIANGLE_SHIFT`]),
+    /// the whole occluders, then the mesh instance and its triangles.
+    fn words(&self) -> Vec<u32> {
+        let convex = self
+            .whole
+            .iter()
+            .all(|b| b.kind == SHAPE_SPHERE || b.kind == SHAPE_BOX);
+        let header = self.whole.len() as u32
+            | if convex { SHADOW_LIST_CONVEX } else { 0 }
+            | (self.triangles.len() as u32) << CELL_LIST_TRIANGLE_SHIFT;
+        let mut words = vec![header];
+        words.extend(self.whole.iter().map(|b| b.instance));
+        if let Some(mesh) = self.mesh {
+            words.push(mesh);
+            words.extend(&self.triangles);
+        }
+        words
+    }
+}
+
 /// The list of the occluders of one cell of a light's grid: its index in
-/// the grid and its words (a header as an occluder list's, then the
-/// instances).
+/// the grid and its words ([`Occupants::words`]).
 struct CellList {
     cell: usize,
     words: Vec<u32>,
@@ -731,37 +798,45 @@ pub fn may_be_blocked(
         return true;
     }
     let cell = cells[(cull.first_cell + g.y as u32 * cull.dims[0] + g.x as u32) as usize];
-    if let Some((list, convex)) = list_at_cell(cells, cell) {
+    if let Some((list, convex, triangles)) = list_at_cell(cells, cell) {
         // The kernel's list test skips the lone convex solid left.
-        return list.iter().any(|&j| !(convex && j == leaving));
+        return triangles.is_some() || list.iter().any(|&j| !(convex && j == leaving));
     }
     cell != 0 && cell != leaving.wrapping_add(1)
 }
 
-/// The occluders of a cell whose word is a list ([`CULL_CELL_LIST`]), and
-/// whether all are spheres or boxes.
-fn list_at_cell(cells: &[u32], cell: u32) -> Option<(&[u32], bool)> {
+/// A cell's list: its whole occluders, whether all are spheres or boxes,
+/// and the mesh instance whose triangles it lists with those triangles.
+type CellOccluders<'a> = (&'a [u32], bool, Option<(u32, &'a [u32])>);
+
+/// The list of a cell whose word is one ([`CULL_CELL_LIST`]).
+fn list_at_cell(cells: &[u32], cell: u32) -> Option<CellOccluders<'_>> {
     if cell == CULL_CELL_MANY || cell & CULL_CELL_LIST == 0 {
         return None;
     }
     let at = (cell & !CULL_CELL_LIST) as usize;
-    let count = (cells[at] & (SHADOW_LIST_CONVEX - 1)) as usize;
+    let header = cells[at];
+    let count = (header & (SHADOW_LIST_CONVEX - 1)) as usize;
+    let triangles = (header >> CELL_LIST_TRIANGLE_SHIFT) as usize;
+    let mesh =
+        (triangles > 0).then(|| (cells[at + 1 + count], &cells[at + 2 + count..][..triangles]));
     Some((
         &cells[at + 1..][..count],
-        cells[at] & SHADOW_LIST_CONVEX != 0,
+        header & SHADOW_LIST_CONVEX != 0,
+        mesh,
     ))
 }
 
 /// The CPU twin of the cell half of the trace kernel's `shadow_query`:
 /// where the cell the shadow ray from `origin` starts in lists its
-/// occluders, those instances and whether all are convex (then the one a
-/// ray leaves from is skipped); None where the ray is culled, answered by
-/// its receiver's list or walks.
+/// occluders, those instances, whether all are convex (then the one a ray
+/// leaves from is skipped), and the mesh triangles it lists; None where
+/// the ray is culled, answered by its receiver's list or walks.
 pub fn cell_occluders<'a>(
     cull: &GpuShadowCull,
     cells: &'a [u32],
     origin: Vec3,
-) -> Option<(&'a [u32], bool)> {
+) -> Option<CellOccluders<'a>> {
     if cull.enabled == 0 {
         return None;
     }
@@ -1139,7 +1214,7 @@ mod tests {
         let cell_words: usize = cull.cells[..CELLS_PER_LIGHT]
             .iter()
             .filter_map(|&w| list_at_cell(&cull.cells, w))
-            .map(|(list, _)| 1 + list.len())
+            .map(|(list, _, mesh)| 1 + list.len() + mesh.map_or(0, |(_, t)| 1 + t.len()))
             .sum();
         assert!(cell_words > 0, "the sun's cells list their occluders");
         let room = 3 * (CELLS_PER_LIGHT + lists) + 4 * accel.instances.len();
@@ -1237,24 +1312,26 @@ mod tests {
     }
 
     /// The same property for the cells' lists: a shadow ray starting in a
-    /// cell that lists its occluders (here from the floor, 0 to 9 units
-    /// across the solids, and from the solids' own surfaces, offset as the
+    /// cell that lists its occluders (here from 18,000 floor points across
+    /// the solids and the cow's shadow, and from the solids' own surfaces, offset as the
     /// kernel offsets it) can only meet instances of that list, and never
     /// the convex solid it leaves where the list is all convex. The CPU
     /// tracer's closest hit along each ray must be listed. It fails if a
     /// cell's list misses an occluder whose footprint lands on it (a wrong
     /// cell index, footprint or margin), or a list points at the wrong
-    /// words. The cow's triangles make their cells walk, and the CSG solid
-    /// (evaluated by its truth table) is listed.
+    /// words. The CSG solid (evaluated by its truth table) is listed, and
+    /// where the cow's triangles are few enough, those: a ray that meets
+    /// the cow there must meet one of them, tested as the kernel tests
+    /// them (the cow's object space, the shear of its root's bounds).
     #[test]
     fn a_shadow_ray_meets_only_its_cells_occluders() {
         let (accel, cull, l, eps) = packed_with_lists();
         let c = &cull.lights[0];
         // Shadow ray origins: (origin, the instance it leaves or MAX).
         let mut origins: Vec<(Vec3, u32)> = Vec::new();
-        for i in 0..120 {
+        for i in 0..150 {
             for j in 0..120 {
-                let (x, z) = (-1.5 + 0.09 * i as f32, -1.5 + 0.09 * j as f32);
+                let (x, z) = (-4.5 + 0.092 * i as f32, -1.5 + 0.09 * j as f32);
                 origins.push((Vec3::new(x, eps, z), u32::MAX));
             }
         }
@@ -1272,9 +1349,9 @@ mod tests {
                 }
             }
         }
-        let (mut listed, mut blocked, mut by_csg) = (0, 0, 0);
+        let (mut listed, mut blocked, mut by_csg, mut by_mesh) = (0, 0, 0, 0);
         for (o, leaving) in origins {
-            let Some((list, convex)) = cell_occluders(c, &cull.cells, o) else {
+            let Some((list, convex, mesh)) = cell_occluders(c, &cull.cells, o) else {
                 continue;
             };
             listed += 1;
@@ -1283,6 +1360,38 @@ mod tests {
             };
             blocked += 1;
             by_csg += usize::from(hit.instance == 1);
+            if let Some((m, triangles)) = mesh.filter(|&(m, _)| m == hit.instance) {
+                // The listed triangles alone block the ray, tested as the
+                // kernel tests them.
+                let (_, object_from_world, shape) = accel.instances[m as usize];
+                let root = accel.nodes[accel.shapes[shape as usize].blas_root as usize];
+                let ray = crate::accel::intersect::TriangleRay::new(
+                    object_from_world.transform_point3(o),
+                    object_from_world.transform_vector3(l),
+                    Vec3::from(root.bounds_min),
+                    Vec3::from(root.bounds_max),
+                );
+                // Every triangle of the mesh that the ray meets is listed
+                // (all of them tested, not only the BVH's).
+                let meets = |k: u32| {
+                    let t = &accel.triangles[k as usize];
+                    crate::accel::intersect::triangle(&ray, t, 0.0, f32::INFINITY).is_some()
+                };
+                let all = mesh_triangles(&accel, accel.shapes[shape as usize].blas_root);
+                let met: Vec<u32> = all.iter().map(|&(k, _)| k).filter(|&k| meets(k)).collect();
+                assert!(
+                    !met.is_empty(),
+                    "the CPU tracer's mesh hit from {o} is no triangle's"
+                );
+                for k in met {
+                    assert!(
+                        triangles.contains(&k),
+                        "the shadow ray from {o} meets triangle {k}, not in its cell's list"
+                    );
+                }
+                by_mesh += 1;
+                continue;
+            }
             assert!(
                 list.contains(&hit.instance),
                 "the shadow ray from {o} meets {} outside its cell's list {list:?}",
@@ -1298,8 +1407,9 @@ mod tests {
             .count();
         assert!(lists >= 500, "{lists} cells have lists");
         assert!(
-            listed >= 5000 && blocked >= 1000 && by_csg >= 20,
-            "{listed} rays start in listed cells, {blocked} of them blocked, {by_csg} by the CSG solid"
+            listed >= 5000 && blocked >= 1000 && by_csg >= 20 && by_mesh >= 20,
+            "{listed} rays start in listed cells, {blocked} of them blocked, \
+             {by_csg} by the CSG solid, {by_mesh} by the mesh's listed triangles"
         );
     }
 
@@ -1403,8 +1513,8 @@ mod tests {
         // The cells' lists never hold the cow (instance 2), whose
         // triangles' cells walk.
         for &w in &cull.cells[..CELLS_PER_LIGHT] {
-            if let Some((list, _)) = list_at_cell(&cull.cells, w) {
-                assert!(!list.contains(&2), "a cell lists the mesh");
+            if let Some((list, _, _)) = list_at_cell(&cull.cells, w) {
+                assert!(!list.contains(&2), "a cell lists the mesh whole");
             }
         }
         let off = build(&accel, &scene.lights, false);

@@ -60,6 +60,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("SHADOW_LIST_WALK", twins::SHADOW_LIST_WALK),
         ("SHADOW_LIST_CONVEX", twins::SHADOW_LIST_CONVEX),
         ("CULL_CELL_LIST", twins::CULL_CELL_LIST),
+        ("CELL_LIST_TRIANGLE_SHIFT", twins::CELL_LIST_TRIANGLE_SHIFT),
         ("PRIMARY_TILE_WORDS", twins::PRIMARY_TILE_WORDS),
         ("INSTANCE_ID_BITS", twins::INSTANCE_ID_BITS),
         ("PRIMARY_TILE_WALK", twins::PRIMARY_TILE_WALK),
