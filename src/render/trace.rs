@@ -161,10 +161,11 @@ impl Variant {
         let reflections = settings.max_bounces > 0 && !reflective.is_empty();
         let casts: Vec<bool> = scene.lights.iter().map(Light::casts_shadows).collect();
         let mask_lights = u32::BITS as usize;
+        let (csg_fast_leaves, csg_interpreter) = csg_programs(buffers);
         Variant {
             csg: !buffers.accel.csg_ops.is_empty(),
-            csg_fast_leaves: csg_programs(buffers).0,
-            csg_interpreter: csg_programs(buffers).1,
+            csg_fast_leaves,
+            csg_interpreter,
             meshes: !buffers.accel.triangles.is_empty(),
             shadow_lights: casts
                 .iter()
