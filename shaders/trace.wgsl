@@ -435,6 +435,35 @@ fn cone_axes(d: vec3<f32>, n: vec3<f32>, width: f32) -> array<vec3<f32>, 2> {
     return array<vec3<f32>, 2>(along * (width / cos_t), cross(n, along) * width);
 }
 
+// The row of tiles that the y-th of `rows` rows of workgroups shades
+// (src/gpu/twins.rs, interleaved_row, is the twin and says why): each
+// residue class of rows mod T = `threads` in turn, classes 0, 2, 4, ...
+// from the top down (k, k + T, k + 2T, ...) and classes 1, 3, 5, ... from
+// the bottom up.
+fn interleaved_row(y: u32, rows: u32, threads: u32) -> u32 {
+    let t = max(threads, 1u);
+    let q = rows / t;
+    let r = rows % t;
+    // The first r classes hold q + 1 rows, the others q.
+    let long = r * (q + 1u);
+    var k: u32;
+    var j: u32;
+    var count: u32;
+    if y < long {
+        count = q + 1u;
+        k = y / count;
+        j = y % count;
+    } else {
+        count = max(q, 1u);
+        k = r + (y - long) / count;
+        j = (y - long) % count;
+    }
+    if (k & 1u) == 1u {
+        j = count - 1u - j;
+    }
+    return k + j * t;
+}
+
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     // The CPU driver runs 8 consecutive invocations as one program, and a
@@ -450,8 +479,11 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     // and write nothing: every invocation makes each trace call together
     // (trace_converged and trace_masked, lib/trace_bvh.wgsl), which the
     // packet walk needs.
-    let inside = all(wg.xy * TRACE_WORKGROUP + local < frame.size_px);
-    let gid = min(wg.xy * TRACE_WORKGROUP + local, frame.size_px - 1u);
+    // The workgroup's tile, its row in interleaved_row's order.
+    let rows = (frame.size_px.y + TRACE_WORKGROUP - 1u) / TRACE_WORKGROUP;
+    let tile = vec2<u32>(wg.x, interleaved_row(wg.y, rows, frame.dispatch_threads));
+    let inside = all(tile * TRACE_WORKGROUP + local < frame.size_px);
+    let gid = min(tile * TRACE_WORKGROUP + local, frame.size_px - 1u);
     steps_left = MAX_INVOCATION_STEPS;
     overflowed = false;
     let pixel = vec2<i32>(gid.xy);
@@ -495,8 +527,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         // The workgroup's tile: every invocation of it takes the same path.
         let tiles = (frame.size_px + vec2<u32>(TRACE_WORKGROUP - 1u)) / TRACE_WORKGROUP;
         let tiles_x = tiles.x;
-        let r = (wg.y * tiles_x + wg.x) * PRIMARY_TILE_WORDS;
-        let flags = primary_tiles[tiles.x * tiles.y * PRIMARY_TILE_WORDS + wg.y * tiles_x + wg.x];
+        let r = (tile.y * tiles_x + tile.x) * PRIMARY_TILE_WORDS;
+        let flags = primary_tiles[tiles.x * tiles.y * PRIMARY_TILE_WORDS + tile.y * tiles_x + tile.x];
         raster_may_show = (flags & TILE_MESH_MAY_SHOW) != 0u;
         accumulates = (flags & TILE_TRACE_ACCUMULATES) != 0u;
         let listed = primary_tiles[r] != PRIMARY_TILE_WALK;

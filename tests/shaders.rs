@@ -82,7 +82,11 @@ fn twins_match_wgsl_layouts() {
             mode,
             max_bounces,
             ray_epsilon,
-            trace_accumulates
+            trace_accumulates,
+            dispatch_threads,
+            _pad0,
+            _pad1,
+            _pad2
         }
     );
     check_twin!(

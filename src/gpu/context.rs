@@ -60,6 +60,21 @@ pub struct AdapterSummary {
     /// (`shaders/lib/trace_packet.wgsl`, written for lavapipe's subgroups:
     /// a CPU adapter with `Features::SUBGROUP` and subgroups of 8 lanes).
     pub packet_walk: bool,
+    /// How many threads the driver splits a compute dispatch among: on a
+    /// CPU adapter (lavapipe) `LP_NUM_THREADS` where set, else the CPUs
+    /// this process may run on, at most 32 (Mesa's `LP_MAX_THREADS`); 1 on
+    /// a GPU. The trace kernel orders its rows of tiles for it
+    /// ([`crate::gpu::twins::interleaved_row`]).
+    pub dispatch_threads: u32,
+}
+
+/// [`AdapterSummary::dispatch_threads`] for a CPU adapter.
+fn cpu_dispatch_threads() -> u32 {
+    let from_env = std::env::var("LP_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.trim().parse::<u32>().ok());
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
+    from_env.unwrap_or(cpus).clamp(1, 32)
 }
 
 impl AdapterSummary {
@@ -73,6 +88,11 @@ impl AdapterSummary {
                 && adapter.features().contains(wgpu::Features::SUBGROUP)
                 && info.subgroup_min_size == 8
                 && info.subgroup_max_size == 8,
+            dispatch_threads: if info.device_type == wgpu::DeviceType::Cpu {
+                cpu_dispatch_threads()
+            } else {
+                1
+            },
             ..AdapterSummary::from_info(&info)
         }
     }
@@ -81,6 +101,7 @@ impl AdapterSummary {
         AdapterSummary {
             ray_queries: false,
             packet_walk: false,
+            dispatch_threads: 1,
             name: info.name.clone(),
             backend: format!("{:?}", info.backend),
             device_type: format!("{:?}", info.device_type),

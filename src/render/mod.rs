@@ -186,6 +186,8 @@ pub struct Renderer {
     /// reaches to the accumulator itself, where it reads primary tiles
     /// ([`Gpu::set_trace_accumulates`] when the renderer was made).
     trace_may_accumulate: bool,
+    /// [`crate::gpu::AdapterSummary::dispatch_threads`] of the device.
+    dispatch_threads: u32,
 }
 
 /// The driver's structures for `scene` where `settings.accel` asks for them
@@ -257,6 +259,7 @@ impl Renderer {
             temporal: TemporalState::default(),
             tile_px: None,
             trace_may_accumulate: gpu.trace_accumulates(),
+            dispatch_threads: gpu.summary.dispatch_threads,
         };
         renderer.bind(gpu)?;
         Ok(renderer)
@@ -695,6 +698,10 @@ impl Renderer {
             // Set by render_sample, which knows whether the trace pass
             // reads its tiles.
             trace_accumulates: 0,
+            dispatch_threads: self.dispatch_threads,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 
