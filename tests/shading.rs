@@ -836,6 +836,66 @@ fn the_trace_pass_accumulates_the_tiles_no_outline_reaches_with_the_same_sums() 
     }
 }
 
+/// The trace kernel's y-th row of workgroups shades the row of tiles that
+/// `interleaved_row` gives for the driver's thread count, so that each of
+/// lavapipe's threads, which takes a contiguous run of the dispatch,
+/// shades rows from all over the image. Any count must give the same
+/// sums, bit for bit: a row of tiles left out or shaded twice would leave
+/// its pixels counting 0 or 6 samples after 3, or holding another
+/// sample's colour. Counts 2, 3, 5 and 7 against 1 (the image's own
+/// order), at 164 x 92: 12 rows of tiles, so 5 and 7 threads make classes
+/// of unequal length, and the odd classes run from the bottom up.
+#[test]
+fn the_trace_kernels_row_order_changes_no_sum() {
+    let gpu = gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let load = |file: &str| celray::scene::Scene::load(&dir.join(file)).unwrap();
+    let cases = [
+        ("default hybrid", load("default.ron"), RenderMode::Hybrid),
+        (
+            "default raytrace",
+            load("default.ron"),
+            RenderMode::Raytrace,
+        ),
+        (
+            "mirrors raytrace",
+            load("mirrors.ron"),
+            RenderMode::Raytrace,
+        ),
+    ];
+    for (name, scene, mode) in cases {
+        let settings = RenderSettings {
+            width: 164,
+            height: 92,
+            spp: 3,
+            mode,
+            ..RenderSettings::default()
+        };
+        let sums = |threads: u32| {
+            gpu.set_dispatch_threads(threads);
+            let r = rendered(&gpu, scene.clone(), settings.clone());
+            let bits: Vec<[u32; 4]> = (r.read_accumulator(&gpu).unwrap().iter())
+                .map(|a| a.map(f32::to_bits))
+                .collect();
+            bits
+        };
+        let image_order = sums(1);
+        assert!(
+            image_order.iter().all(|a| f32::from_bits(a[3]) == 3.0),
+            "{name}: a pixel does not count 3 samples in the image's order"
+        );
+        for threads in [2, 3, 5, 7] {
+            let got = sums(threads);
+            let differ = (0..got.len()).filter(|&i| got[i] != image_order[i]).count();
+            assert_eq!(
+                differ, 0,
+                "{name}: {differ} pixels sum otherwise with rows ordered for {threads} threads"
+            );
+        }
+    }
+    gpu.set_dispatch_threads(gpu.summary.dispatch_threads);
+}
+
 /// The accumulate pass searches for outlines in a kernel of its own, over
 /// the list of marked tiles (one indirect dispatch); where an image has
 /// more tiles than one dispatch can count (over about 4096 x 4096 pixels

@@ -1,6 +1,6 @@
 //! The wgpu instance, adapter choice and device, headless or for a window.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 
 use crate::gpu::shader::ShaderOverrides;
@@ -157,6 +157,10 @@ pub struct Gpu {
     /// tile's instances (`accel::screen_tiles`); tests turn it off to
     /// check the tiles against the BVH walk.
     primary_tiles: AtomicBool,
+    /// The thread count renderers made from now on order the trace
+    /// kernel's rows of tiles for ([`AdapterSummary::dispatch_threads`]
+    /// unless a test sets another).
+    dispatch_threads: AtomicU32,
     /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
@@ -304,6 +308,7 @@ impl Gpu {
         }));
         log::info!("adapter: {summary}");
         let packet_walk = AtomicBool::new(summary.packet_walk);
+        let dispatch_threads = AtomicU32::new(summary.dispatch_threads);
         Ok(Gpu {
             instance,
             adapter,
@@ -317,6 +322,7 @@ impl Gpu {
             trace_accumulates: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
             primary_tiles: AtomicBool::new(true),
+            dispatch_threads,
             edge_tolerance: AtomicBool::new(edge_tolerance),
             packet_walk,
         })
@@ -381,6 +387,19 @@ impl Gpu {
 
     pub fn primary_tiles(&self) -> bool {
         self.primary_tiles.load(Ordering::Relaxed)
+    }
+
+    /// The thread count that renderers made from now on order the trace
+    /// kernel's rows of tiles for (`crate::gpu::twins::interleaved_row`;
+    /// at least 1): any count gives the same images, only the driver's
+    /// split of the work changes (for tests and benchmarks).
+    pub fn set_dispatch_threads(&self, threads: u32) {
+        self.dispatch_threads
+            .store(threads.max(1), Ordering::Relaxed);
+    }
+
+    pub fn dispatch_threads(&self) -> u32 {
+        self.dispatch_threads.load(Ordering::Relaxed)
     }
 
     /// Whether pipelines built from now on give the triangle test's edge

@@ -186,7 +186,8 @@ pub struct Renderer {
     /// reaches to the accumulator itself, where it reads primary tiles
     /// ([`Gpu::set_trace_accumulates`] when the renderer was made).
     trace_may_accumulate: bool,
-    /// [`crate::gpu::AdapterSummary::dispatch_threads`] of the device.
+    /// The thread count the trace kernel orders its rows of tiles for
+    /// ([`Gpu::dispatch_threads`] when the renderer was made).
     dispatch_threads: u32,
 }
 
@@ -259,7 +260,7 @@ impl Renderer {
             temporal: TemporalState::default(),
             tile_px: None,
             trace_may_accumulate: gpu.trace_accumulates(),
-            dispatch_threads: gpu.summary.dispatch_threads,
+            dispatch_threads: gpu.dispatch_threads(),
         };
         renderer.bind(gpu)?;
         Ok(renderer)
