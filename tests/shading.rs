@@ -784,9 +784,7 @@ fn the_trace_pass_accumulates_the_tiles_no_outline_reaches_with_the_same_sums() 
             gpu.set_trace_accumulates(on);
             let r = rendered(&gpu, scene.clone(), settings.clone());
             gpu.set_trace_accumulates(true);
-            let bits: Vec<[u32; 4]> = (r.read_accumulator(&gpu).unwrap().iter())
-                .map(|a| a.map(f32::to_bits))
-                .collect();
+            let bits = accumulator_bits(&gpu, &r);
             assert!(
                 bits.iter().all(|a| f32::from_bits(a[3]) == 3.0),
                 "{name} (trace accumulates: {on}): a pixel does not count 3 samples"
@@ -873,11 +871,7 @@ fn the_trace_kernels_row_order_changes_no_sum() {
         };
         let sums = |threads: u32| {
             gpu.set_dispatch_threads(threads);
-            let r = rendered(&gpu, scene.clone(), settings.clone());
-            let bits: Vec<[u32; 4]> = (r.read_accumulator(&gpu).unwrap().iter())
-                .map(|a| a.map(f32::to_bits))
-                .collect();
-            bits
+            accumulator_bits(&gpu, &rendered(&gpu, scene.clone(), settings.clone()))
         };
         let image_order = sums(1);
         assert!(

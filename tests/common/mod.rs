@@ -78,6 +78,14 @@ pub fn rendered(gpu: &Gpu, scene: Scene, settings: RenderSettings) -> Renderer {
     r
 }
 
+/// The accumulator of `r`, each pixel's sums and count as their f32 bits,
+/// to compare bit for bit.
+pub fn accumulator_bits(gpu: &Gpu, r: &Renderer) -> Vec<[u32; 4]> {
+    (r.read_accumulator(gpu).unwrap().iter())
+        .map(|a| a.map(f32::to_bits))
+        .collect()
+}
+
 /// Pixels where `got` and `want` disagree and no 8-neighbour of the pixel
 /// has the opposite `want` value: disagreements away from a boundary.
 pub fn mismatches_off_boundary(got: &[bool], want: &[bool], w: u32, h: u32) -> Vec<(u32, u32)> {
