@@ -1292,13 +1292,7 @@ fn primary_tiles_draw_what_the_walk_draws() {
     ];
     for (file, mode) in cases {
         let scene = Scene::load(&dir.join(file)).unwrap();
-        let settings = RenderSettings {
-            width: 164,
-            height: 92,
-            spp: 3,
-            mode,
-            ..RenderSettings::default()
-        };
+        let settings = small_settings(mode);
         let draw = |on: bool| {
             gpu.set_primary_tiles(on);
             let r = rendered(&gpu, scene.clone(), settings.clone());

@@ -727,13 +727,7 @@ fn the_trace_pass_accumulates_the_tiles_no_outline_reaches_with_the_same_sums() 
     let gpu = gpu();
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
     let load = |file: &str| celray::scene::Scene::load(&dir.join(file)).unwrap();
-    let small = |mode| RenderSettings {
-        width: 164,
-        height: 92,
-        spp: 3,
-        mode,
-        ..RenderSettings::default()
-    };
+    let small = small_settings;
     // A small sphere right of centre, its 5 px outline magenta.
     let sphere = scene(
         r#"(version: 1,
@@ -862,13 +856,7 @@ fn the_trace_kernels_row_order_changes_no_sum() {
         ),
     ];
     for (name, scene, mode) in cases {
-        let settings = RenderSettings {
-            width: 164,
-            height: 92,
-            spp: 3,
-            mode,
-            ..RenderSettings::default()
-        };
+        let settings = small_settings(mode);
         let sums = |threads: u32| {
             gpu.set_dispatch_threads(threads);
             accumulator_bits(&gpu, &rendered(&gpu, scene.clone(), settings.clone()))

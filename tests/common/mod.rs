@@ -71,6 +71,18 @@ pub fn rgb_at(img: &[u8], width: u32, x: u32, y: u32) -> [u8; 3] {
     [img[i], img[i + 1], img[i + 2]]
 }
 
+/// 3 samples at 164 x 92 in `mode`: partial 8 px tiles at the right and
+/// bottom edges, for tests that compare two ways of making the same sums.
+pub fn small_settings(mode: RenderMode) -> RenderSettings {
+    RenderSettings {
+        width: 164,
+        height: 92,
+        spp: 3,
+        mode,
+        ..RenderSettings::default()
+    }
+}
+
 /// A renderer that has accumulated `settings.spp` samples of `scene`.
 pub fn rendered(gpu: &Gpu, scene: Scene, settings: RenderSettings) -> Renderer {
     let mut r = Renderer::new(gpu, scene, settings).unwrap_or_else(|e| panic!("{e}"));
