@@ -786,18 +786,11 @@ pub fn may_be_blocked(
             return true;
         }
     }
-    let u = glam::Vec4::from_array(cull.u);
-    let v = glam::Vec4::from_array(cull.v);
-    let g = Vec2::new(u.xyz().dot(origin) - u.w, v.xyz().dot(origin) - v.w)
-        * Vec2::from_array(cull.cells_per_unit);
-    let dims = Vec2::new(cull.dims[0] as f32, cull.dims[1] as f32);
-    if g.x < 0.0 || g.y < 0.0 || g.x >= dims.x || g.y >= dims.y {
-        return false;
-    }
-    if g.is_nan() {
-        return true;
-    }
-    let cell = cells[(cull.first_cell + g.y as u32 * cull.dims[0] + g.x as u32) as usize];
+    let cell = match grid_cell(cull, cells, origin) {
+        GridCell::Outside => return false,
+        GridCell::NotANumber => return true,
+        GridCell::Word(w) => w,
+    };
     if let Some((list, convex, triangles)) = list_at_cell(cells, cell) {
         // The kernel's list test skips the lone convex solid left.
         return triangles.is_some() || list.iter().any(|&j| !(convex && j == leaving));
@@ -840,16 +833,37 @@ pub fn cell_occluders<'a>(
     if cull.enabled == 0 {
         return None;
     }
+    match grid_cell(cull, cells, origin) {
+        GridCell::Word(w) => list_at_cell(cells, w),
+        GridCell::Outside | GridCell::NotANumber => None,
+    }
+}
+
+/// Where a shadow ray's origin falls on its light's grid.
+enum GridCell {
+    /// Off the grid: no occluder's footprint reaches it.
+    Outside,
+    /// A NaN origin, which every comparison fails (the kernel casts it).
+    NotANumber,
+    /// The word of the cell it starts in.
+    Word(u32),
+}
+
+/// The cell of `cull`'s grid that `origin` falls in, as the trace
+/// kernel's `shadow_query` finds it.
+fn grid_cell(cull: &GpuShadowCull, cells: &[u32], origin: Vec3) -> GridCell {
     let u = glam::Vec4::from_array(cull.u);
     let v = glam::Vec4::from_array(cull.v);
     let g = Vec2::new(u.xyz().dot(origin) - u.w, v.xyz().dot(origin) - v.w)
         * Vec2::from_array(cull.cells_per_unit);
     let dims = Vec2::new(cull.dims[0] as f32, cull.dims[1] as f32);
-    if !(g.x >= 0.0 && g.y >= 0.0 && g.x < dims.x && g.y < dims.y) {
-        return None;
+    if g.x < 0.0 || g.y < 0.0 || g.x >= dims.x || g.y >= dims.y {
+        return GridCell::Outside;
     }
-    let cell = cells[(cull.first_cell + g.y as u32 * cull.dims[0] + g.x as u32) as usize];
-    list_at_cell(cells, cell)
+    if g.is_nan() {
+        return GridCell::NotANumber;
+    }
+    GridCell::Word(cells[(cull.first_cell + g.y as u32 * cull.dims[0] + g.x as u32) as usize])
 }
 
 /// The CPU twin of the list half of the trace kernel's `shadow_query`:
@@ -1311,6 +1325,20 @@ mod tests {
         (accel, cull, Vec3::new(0.6, 1.0, 0.4).normalize(), eps)
     }
 
+    /// The shadow ray from `o` met `hit`: it must be in the `list` the ray
+    /// was given, and not the convex instance it leaves where the list
+    /// skips that (`convex`).
+    fn assert_hit_listed(o: Vec3, hit: u32, list: &[u32], convex: bool, leaving: u32) {
+        assert!(
+            list.contains(&hit),
+            "the shadow ray from {o} meets {hit} outside its list {list:?}"
+        );
+        assert!(
+            !(convex && hit == leaving),
+            "the ray from {o} leaving convex instance {leaving} meets it"
+        );
+    }
+
     /// The same property for the cells' lists: a shadow ray starting in a
     /// cell that lists its occluders (here from 18,000 floor points across
     /// the solids and the cow's shadow, and from the solids' own surfaces, offset as the
@@ -1392,15 +1420,7 @@ mod tests {
                 by_mesh += 1;
                 continue;
             }
-            assert!(
-                list.contains(&hit.instance),
-                "the shadow ray from {o} meets {} outside its cell's list {list:?}",
-                hit.instance
-            );
-            assert!(
-                !(convex && hit.instance == leaving),
-                "the ray leaving convex instance {leaving} meets it"
-            );
+            assert_hit_listed(o, hit.instance, list, convex, leaving);
         }
         let lists = (0..CELLS_PER_LIGHT)
             .filter(|&i| list_at_cell(&cull.cells, cull.cells[i]).is_some())
@@ -1459,15 +1479,7 @@ mod tests {
                     };
                     by_others += usize::from(hit.instance != k);
                     from_inside += usize::from(side < 0.0);
-                    assert!(
-                        list.contains(&hit.instance),
-                        "the shadow ray from {o} on instance {k} meets {} outside its list {list:?}",
-                        hit.instance
-                    );
-                    assert!(
-                        !(convex && hit.instance == leaving),
-                        "the ray leaving convex instance {k} meets it"
-                    );
+                    assert_hit_listed(o, hit.instance, list, convex, leaving);
                 }
             }
         }
