@@ -1270,6 +1270,107 @@ fn occluder_lists_draw_what_the_walk_draws() {
     }
 }
 
+/// Small tables read by selection (`gpu::uniform_tables::SelectedTables`:
+/// a tree of branches over constant indices, on CPU adapters) draw what
+/// the reads at each invocation's index draw, byte for byte, ids too. The
+/// generated scenes give every instance its own place and colour and use
+/// every material (some reflect, so materials are read at reflected hits
+/// too), so a tree leaf that loads the wrong element shows: 16 of each
+/// (every leaf of the full tree), 11 instances and 7 materials (trees cut
+/// by their counts). Then the default scene in hybrid mode (the cow's
+/// material from the raster G-buffer's instance). A table past the limit
+/// is read at its index (a unit test of `SelectedTables::of`).
+#[test]
+fn selected_tables_draw_what_indexed_reads_draw() {
+    use celray::gpu::uniform_tables::MAX_SELECTED;
+    let gpu = gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    const { assert!(MAX_SELECTED >= 16, "the 16 x 16 case tests a full tree") };
+    let grid = |instances: usize, materials: usize| {
+        let materials_ron: String = (0..materials)
+            .map(|k| {
+                let t = k as f32 / materials as f32;
+                let model = match k % 3 {
+                    0 => "Toon(bands: 3)".to_string(),
+                    1 => "BlinnPhong".to_string(),
+                    _ => format!("Toon(bands: {})", 2 + k % 4),
+                };
+                format!(
+                    "\"m{k}\": (base_color: ({t}, {}, {}), model: {model}, reflectivity: {}),",
+                    1.0 - t,
+                    (k % 4) as f32 / 3.0,
+                    if k % 5 == 4 { 0.5 } else { 0.0 },
+                )
+            })
+            .collect();
+        let instances_ron: String = (0..instances)
+            .map(|k| {
+                let (x, y) = ((k % 5) as f32 * 2.4 - 4.8, (k / 5) as f32 * 1.5 - 2.2);
+                let s = 0.45 + 0.05 * (k % 3) as f32;
+                format!(
+                    "(shape: \"ball\", material: \"m{}\", transform: (translate: ({x}, {y}, 0.0), scale: ({s}, {s}, {s}))),",
+                    k % materials
+                )
+            })
+            .collect();
+        scene(&format!(
+            r#"(version: 1,
+                camera: (eye: (0.0, 0.0, 10.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 164, height: 92),
+                lights: [Directional(direction: (-0.4, -1.0, -0.7), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+                materials: {{ {materials_ron} }},
+                shapes: {{ "ball": Sphere(radius: 1.0) }},
+                instances: [{instances_ron}],
+            )"#
+        ))
+    };
+    let cases = [
+        ("16 x 16", grid(16, 16), RenderMode::Raytrace),
+        ("11 x 7", grid(11, 7), RenderMode::Raytrace),
+        (
+            "default",
+            Scene::load(&dir.join("default.ron")).unwrap(),
+            RenderMode::Hybrid,
+        ),
+    ];
+    for (name, scene, mode) in cases {
+        let draw = |on: bool| {
+            gpu.set_select_tables(on);
+            let r = rendered(&gpu, scene.clone(), small_settings(mode));
+            gpu.set_select_tables(true);
+            let selected = r.scene_buffers().selected;
+            let image = (r.read_srgb8(&gpu).unwrap(), r.read_ids(&gpu).unwrap());
+            (selected, image)
+        };
+        let (selected, (image, ids)) = draw(true);
+        let (none, (indexed, indexed_ids)) = draw(false);
+        let instances = scene.instances.len();
+        assert_eq!(
+            selected.materials() as usize,
+            scene.materials.len(),
+            "{name}: materials selected"
+        );
+        assert_eq!(
+            selected.instances() as usize,
+            instances,
+            "{name}: instances selected"
+        );
+        assert_eq!(
+            (none.materials(), none.instances()),
+            (0, 0),
+            "{name}: selection off"
+        );
+        let differ = image.iter().zip(&indexed).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{name}: {differ} bytes differ with selection");
+        assert!(ids == indexed_ids, "{name}: ids differ with selection");
+        // Every instance shows (its id in the G-buffer).
+        if name.contains(" x ") {
+            for k in 1..=instances as u32 {
+                assert!(ids.contains(&k), "{name}: instance {k} not in the image");
+            }
+        }
+    }
+}
+
 /// Primary rays that test only their screen tile's instances
 /// (`accel::screen_tiles`) draw the picture the BVH walk draws, byte for
 /// byte: the default scene (hybrid, whose primary rays skip the

@@ -50,6 +50,18 @@ override UNIFORM_TABLES: u32 = 0u;
 @group(0) @binding(19) var<storage, read> node_words: array<u32>;
 @group(0) @binding(20) var<storage, read> triangle_words: array<u32>;
 
+// Tables read by selection (src/gpu/uniform_tables.rs, SelectedTables): on
+// the CPU driver a table read at a per-invocation index is a gather even
+// where the 8 lanes of its SIMD program want the same element, while a
+// read at a constant index is one load for all 8. Where not 0, the
+// material (instance) table's element count, at most MAX_SELECTED: then
+// load_material (load_instance) takes element i from a tree of branches
+// over the constant indices (select_material and select_instance, in the
+// generated lib/select_tables.wgsl).
+override SELECT_MATERIALS: u32 = 0u;
+override SELECT_INSTANCES: u32 = 0u;
+#include "lib/select_tables.wgsl"
+
 fn uniform_table(table: u32) -> bool {
     return (UNIFORM_TABLES & table) != 0u;
 }
@@ -71,6 +83,13 @@ fn load_node(i: u32) -> BvhNode {
 }
 
 fn load_instance(i: u32) -> GpuInstance {
+    if SELECT_INSTANCES != 0u {
+        return select_instance(i);
+    }
+    return load_instance_at(i);
+}
+
+fn load_instance_at(i: u32) -> GpuInstance {
     if uniform_table(TABLE_INSTANCES) {
         return instances_u[i];
     }
@@ -85,6 +104,13 @@ fn load_shape(i: u32) -> GpuShape {
 }
 
 fn load_material(i: u32) -> GpuMaterial {
+    if SELECT_MATERIALS != 0u {
+        return select_material(i);
+    }
+    return load_material_at(i);
+}
+
+fn load_material_at(i: u32) -> GpuMaterial {
     if uniform_table(TABLE_MATERIALS) {
         return materials_u[i];
     }

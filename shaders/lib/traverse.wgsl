@@ -200,18 +200,21 @@ fn top_miss(t_max: f32) -> TopHit {
 // With `skip_meshes`, triangle meshes are ignored (hybrid mode rasterizes
 // them).
 fn test_instance(inst: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, skip_meshes: bool, base: u32, top: ptr<function, TopHit>) -> bool {
-    let shape = load_instance(inst).shape;
+    // One read of the instance (where tables are read by selection, one
+    // tree of branches: lib/scene_bindings.wgsl).
+    let instance = load_instance(inst);
+    let shape = instance.shape;
     if skip_meshes && load_shape(shape).kind == SHAPE_MESH {
         return false;
     }
-    let m = load_instance(inst).object_from_world;
+    let m = instance.object_from_world;
     let h = intersect_instance_shape(shape, (m * vec4<f32>(o, 1.0)).xyz, (m * vec4<f32>(d, 0.0)).xyz, t_min, (*top).best.t, base);
     if !h.hit {
         return false;
     }
     (*top).best.t = h.t;
     (*top).best.instance = inst;
-    (*top).best.material = select(object_material, load_instance(inst).material, object_material == CSG_NO_MATERIAL);
+    (*top).best.material = select(object_material, instance.material, object_material == CSG_NO_MATERIAL);
     (*top).object_normal = h.normal;
     (*top).object_geometric = h.geometric;
     hit_triangle = mesh_triangle;

@@ -140,6 +140,10 @@ pub struct Gpu {
     /// uniform copies (gpu::uniform_tables); tests and benchmarks turn it
     /// off to compare with the storage reads.
     uniform_tables: AtomicBool,
+    /// Whether scenes uploaded from now on read their smallest tables by
+    /// selection (gpu::uniform_tables::SelectedTables); tests turn it off
+    /// to compare with the indexed reads.
+    select_tables: AtomicBool,
     /// Whether renderers prepared from now on search for outlines over the
     /// listed marked tiles (`render::accumulate`); tests turn it off to
     /// check the dispatch over every tile against it.
@@ -260,7 +264,8 @@ impl Gpu {
     /// A device on a given adapter (the window code picks one that can present).
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
         let summary = AdapterSummary::from_adapter(&adapter);
-        let edge_tolerance = adapter.get_info().device_type != wgpu::DeviceType::Cpu;
+        let cpu = adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+        let edge_tolerance = !cpu;
         // Ray queries serve the driver acceleration path (render/driver_accel.rs);
         // they are requested wherever offered, so either path can be chosen
         // later on one device. They need the experimental-features token and
@@ -318,6 +323,7 @@ impl Gpu {
             uncaptured,
             shader_overrides: Mutex::new(None),
             uniform_tables: AtomicBool::new(true),
+            select_tables: AtomicBool::new(cpu),
             outline_tile_list: AtomicBool::new(true),
             trace_accumulates: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
@@ -337,6 +343,20 @@ impl Gpu {
 
     pub fn uniform_tables(&self) -> bool {
         self.uniform_tables.load(Ordering::Relaxed)
+    }
+
+    /// Whether scenes uploaded from now on read tables of at most
+    /// [`MAX_SELECTED`](crate::gpu::uniform_tables::MAX_SELECTED) elements
+    /// by selection (a branch per element at a constant index) instead of at
+    /// a per-invocation index. On by default on CPU adapters, where it took
+    /// about a tenth off the default scene's trace pass; a GPU reads an
+    /// indexed table through its caches. Tests turn it off to compare.
+    pub fn set_select_tables(&self, on: bool) {
+        self.select_tables.store(on, Ordering::Relaxed);
+    }
+
+    pub fn select_tables(&self) -> bool {
+        self.select_tables.load(Ordering::Relaxed)
     }
 
     /// Whether renderers prepared from now on run the outline search over

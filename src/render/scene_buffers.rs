@@ -20,7 +20,7 @@ use crate::gpu::twins::{
     GpuInstance, GpuLight, GpuMaterial, Vertex, LIGHTS_DYNAMIC, MAX_TOON_BANDS, NO_TEXTURE,
     SHADING_BLINN_PHONG, SHADING_TOON,
 };
-use crate::gpu::uniform_tables::{Table, UniformTables, UNIFORM_TABLE_BYTES};
+use crate::gpu::uniform_tables::{SelectedTables, Table, UniformTables, UNIFORM_TABLE_BYTES};
 use crate::gpu::{Gpu, GpuError};
 use crate::render::settings::RenderMode;
 use crate::render::textures::{scene_uses_textures, SceneTextures};
@@ -183,6 +183,9 @@ pub struct SceneBuffers {
     /// Which tables the passes read from their uniform copies
     /// ([`crate::gpu::uniform_tables`]): part of every pipeline's key.
     pub tables: UniformTables,
+    /// Which tables the trace pass reads by selection
+    /// ([`SelectedTables`], where [`Gpu::select_tables`]).
+    pub selected: SelectedTables,
     /// Whether the trace pass walks this scene's BVH as packets
     /// (`shaders/lib/trace_packet.wgsl`): where the device can
     /// ([`Gpu::packet_walk`]) and the top-level tree's nodes are read from
@@ -764,6 +767,10 @@ impl SceneBuffers {
             ),
             false => UniformTables::NONE,
         };
+        let selected = match gpu.select_tables() {
+            true => SelectedTables::of(materials.len(), gpu_instances.len()),
+            false => SelectedTables::NONE,
+        };
         let packet_trace =
             gpu.packet_walk() && !tables.contains(Table::Nodes) && !tables.top_nodes_only();
         // The contents of the uniform copies (64 KiB at most each): whole
@@ -848,6 +855,7 @@ impl SceneBuffers {
                 shadow_cells,
                 shadow_lists,
                 tables,
+                selected,
                 packet_trace,
                 primary_tiles: gpu.primary_tiles()
                     && accel.instances.len() <= crate::accel::screen_tiles::MAX_TILED_INSTANCES,

@@ -23,7 +23,7 @@ use crate::gpu::twins::{
     CSG_FAST_COUNT_SHIFT, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, SHAPE_CSG, SHAPE_MESH,
     TILE_MESH_MAY_SHOW, TRACE_WORKGROUP,
 };
-use crate::gpu::uniform_tables::UniformTables;
+use crate::gpu::uniform_tables::{SelectedTables, UniformTables};
 use crate::gpu::{readback, shader, Gpu, GpuError};
 use crate::render::driver_accel::{self, DriverAccel};
 use crate::render::scene_buffers::{
@@ -141,6 +141,8 @@ pub struct Variant {
     lights: LightLayout,
     /// The tables read from their uniform copies.
     tables: UniformTables,
+    /// The tables read by selection.
+    selected: SelectedTables,
     /// The BVH walked as packets of 8 (`SceneBuffers::packet_trace`;
     /// `lib/trace_packet.wgsl`), else each ray on its own.
     packet: bool,
@@ -183,6 +185,7 @@ impl Variant {
             shading: ShadingVariant::of(&scene.materials, &scene.lights),
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
+            selected: buffers.selected,
             packet: buffers.packet_trace,
             sizes: buffers.accel.sizes,
         }
@@ -222,6 +225,7 @@ impl Variant {
         constants.extend(self.shading.constants());
         constants.extend(self.lights.constants());
         constants.push(self.tables.constant());
+        constants.extend(self.selected.constants());
         constants
     }
 }
