@@ -68,6 +68,25 @@ pub struct AdapterSummary {
     pub dispatch_threads: u32,
 }
 
+/// Whether reading small tables by selection pays on this adapter
+/// ([`Gpu::select_tables`]): lavapipe from Mesa 25, which skips a branch
+/// none of a SIMD program's 8 lanes takes. Mesa 22.3's runs both sides of
+/// every branch, so there every leaf of a selection tree runs: the default
+/// scene's trace pass took 2.0x the time of the gathers (twenty-eighth
+/// session). Versions in between were not measured; GPUs read indexed
+/// tables through their caches.
+fn selection_pays(info: &wgpu::AdapterInfo) -> bool {
+    info.device_type == wgpu::DeviceType::Cpu
+        && mesa_major(&info.driver_info).is_some_and(|major| major >= 25)
+}
+
+/// The major version in a Mesa driver string ("Mesa 25.0.7-2~bpo12+1
+/// (LLVM 15.0.6)": 25).
+fn mesa_major(driver_info: &str) -> Option<u32> {
+    let (_, rest) = driver_info.split_once("Mesa ")?;
+    rest.split('.').next()?.parse().ok()
+}
+
 /// [`AdapterSummary::dispatch_threads`] for a CPU adapter.
 fn cpu_dispatch_threads() -> u32 {
     let from_env = std::env::var("LP_NUM_THREADS")
@@ -141,8 +160,9 @@ pub struct Gpu {
     /// off to compare with the storage reads.
     uniform_tables: AtomicBool,
     /// Whether scenes uploaded from now on read their smallest tables by
-    /// selection (gpu::uniform_tables::SelectedTables); tests turn it off
-    /// to compare with the indexed reads.
+    /// selection (gpu::uniform_tables::SelectedTables; on where
+    /// `selection_pays`); tests turn it off to compare with the indexed
+    /// reads.
     select_tables: AtomicBool,
     /// Whether renderers prepared from now on search for outlines over the
     /// listed marked tiles (`render::accumulate`); tests turn it off to
@@ -264,8 +284,8 @@ impl Gpu {
     /// A device on a given adapter (the window code picks one that can present).
     pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
         let summary = AdapterSummary::from_adapter(&adapter);
-        let cpu = adapter.get_info().device_type == wgpu::DeviceType::Cpu;
-        let edge_tolerance = !cpu;
+        let edge_tolerance = adapter.get_info().device_type != wgpu::DeviceType::Cpu;
+        let select_tables = selection_pays(&adapter.get_info());
         // Ray queries serve the driver acceleration path (render/driver_accel.rs);
         // they are requested wherever offered, so either path can be chosen
         // later on one device. They need the experimental-features token and
@@ -323,7 +343,7 @@ impl Gpu {
             uncaptured,
             shader_overrides: Mutex::new(None),
             uniform_tables: AtomicBool::new(true),
-            select_tables: AtomicBool::new(cpu),
+            select_tables: AtomicBool::new(select_tables),
             outline_tile_list: AtomicBool::new(true),
             trace_accumulates: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
@@ -348,9 +368,9 @@ impl Gpu {
     /// Whether scenes uploaded from now on read tables of at most
     /// [`MAX_SELECTED`](crate::gpu::uniform_tables::MAX_SELECTED) elements
     /// by selection (a branch per element at a constant index) instead of at
-    /// a per-invocation index. On by default on CPU adapters, where it took
-    /// about a tenth off the default scene's trace pass; a GPU reads an
-    /// indexed table through its caches. Tests turn it off to compare.
+    /// a per-invocation index. On by default where it pays (lavapipe from
+    /// Mesa 25: `selection_pays`), where it took about a tenth off the
+    /// default scene's trace pass. Tests turn it off to compare.
     pub fn set_select_tables(&self, on: bool) {
         self.select_tables.store(on, Ordering::Relaxed);
     }
@@ -523,4 +543,19 @@ fn new_instance() -> wgpu::Instance {
         desc.backends = wgpu::Backends::PRIMARY;
     }
     wgpu::Instance::new(desc)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::mesa_major;
+
+    /// The major version comes from lavapipe's driver string, and a
+    /// string without "Mesa " gives none (selection stays off).
+    #[test]
+    fn mesa_major_reads_the_driver_string() {
+        assert_eq!(mesa_major("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"), Some(25));
+        assert_eq!(mesa_major("Mesa 22.3.6 (LLVM 15.0.6)"), Some(22));
+        assert_eq!(mesa_major("570.124.06"), None);
+        assert_eq!(mesa_major("Mesa x"), None);
+    }
 }
