@@ -1271,7 +1271,8 @@ fn occluder_lists_draw_what_the_walk_draws() {
 }
 
 /// Small tables read by selection (`gpu::uniform_tables::SelectedTables`:
-/// a tree of branches over constant indices, on CPU adapters) draw what
+/// a tree of branches over constant indices; forced on here, on by default
+/// on lavapipe from Mesa 25) draw what
 /// the reads at each invocation's index draw, byte for byte, ids too. The
 /// generated scenes give every instance its own place and colour and use
 /// every material (some reflect, so materials are read at reflected hits

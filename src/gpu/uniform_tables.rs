@@ -168,7 +168,7 @@ impl UniformTables {
 pub const MAX_SELECTED: u32 = 16;
 
 /// The tables the passes read by selection, where the device wants it
-/// ([`crate::gpu::Gpu::select_tables`]: CPU adapters), with their element
+/// ([`crate::gpu::Gpu::select_tables`]: lavapipe from Mesa 25), with their element
 /// counts: the override constants `SELECT_MATERIALS` and
 /// `SELECT_INSTANCES` (lib/scene_bindings.wgsl), 0 for a table read at
 /// its index.
