@@ -189,6 +189,20 @@ fn window_screenshot_shows_the_scene_and_the_panel() {
         panel.len()
     );
     assert!(text > 500, "no panel text: {text} light pixels");
+    // The panel draws no fill of its own: the window is cleared to the
+    // theme's panel colour. Its most common pixel is that colour exactly
+    // (an 8-bit clear and a copy: no rounding to allow for).
+    let mut counts = std::collections::HashMap::new();
+    for p in &panel {
+        *counts.entry(p.0).or_insert(0usize) += 1;
+    }
+    let (common, _) = counts.iter().max_by_key(|(_, n)| **n).unwrap();
+    let fill = egui::Visuals::dark().panel_fill;
+    assert_eq!(
+        *common,
+        [fill.r(), fill.g(), fill.b()],
+        "the panel's colour is not egui's dark panel fill"
+    );
 
     // The scene on the right: the sky colour at the top (background
     // (0.6, 0.7, 0.85) linear is about (203, 218, 237) in sRGB), many

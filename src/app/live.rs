@@ -13,7 +13,7 @@ use super::controller::{self, NavMode};
 use super::event_loop::{window_title, AppEvent};
 use super::layout;
 use super::model::Model;
-use super::overlay::{Overlay, OverlayDraw, OverlayFrame};
+use super::overlay::{self, Overlay, OverlayDraw, OverlayFrame};
 use super::panel::{self, PanelInfo};
 use super::reload::HotReload;
 use super::screenshot;
@@ -236,6 +236,7 @@ impl LiveApp {
         };
         let frame = self.overlay.run(&self.gpu, &self.surface.window, |ui| {
             egui::Panel::left("panel")
+                .frame(overlay::panel_frame(ui.style()))
                 .default_size(330.0)
                 .show(ui, |ui| panel::side_panel(ui, model, &info));
             let rect = ui.available_rect_before_wrap();
@@ -334,11 +335,17 @@ impl LiveApp {
             renderer: &self.overlay.renderer,
             paint_jobs: &paint.paint_jobs,
             screen: &paint.screen,
+            background: paint.background,
         };
         if let Some(t) = &mut self.timer {
             t.copy_begin(&mut encoder);
         }
-        let load = (self.surface).compose_views(&mut encoder, &frame.texture, &placements);
+        let load = (self.surface).compose_views(
+            &mut encoder,
+            &frame.texture,
+            &placements,
+            overlay.background,
+        );
         if let Some(t) = &mut self.timer {
             t.copy_end(&mut encoder);
             t.egui_begin(&mut encoder);

@@ -20,14 +20,6 @@ use crate::gpu::{AdapterChoice, Gpu, GpuError};
 /// the resolve pass encodes in the shader.
 const EGUI_VIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 
-/// The colour of the window where no view is.
-const BACKGROUND: wgpu::Color = wgpu::Color {
-    r: 0.02,
-    g: 0.02,
-    b: 0.025,
-    a: 1.0,
-};
-
 /// The window and the surface it presents.
 pub(super) struct WindowSurface {
     pub window: Arc<Window>,
@@ -270,18 +262,19 @@ impl WindowSurface {
         placements: &[Placement],
         overlay: &OverlayDraw,
     ) {
-        let load = self.compose_views(encoder, target, placements);
+        let load = self.compose_views(encoder, target, placements, overlay.background);
         self.compose_overlay(encoder, target, load, overlay);
     }
 
     /// The first half of [`WindowSurface::compose`]: where the views are
-    /// copied in, clears `target` and copies them; returns how the overlay
-    /// pass is to load `target`.
+    /// copied in, clears `target` to `background` and copies them; returns
+    /// how the overlay pass is to load `target`.
     pub fn compose_views(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         target: &wgpu::Texture,
         placements: &[Placement],
+        background: wgpu::Color,
     ) -> wgpu::LoadOp<wgpu::Color> {
         let view = target.create_view(&Default::default());
         if self.direct {
@@ -290,7 +283,7 @@ impl WindowSurface {
                 label: Some("clear window"),
                 color_attachments: &[Some(color_attachment(
                     &view,
-                    wgpu::LoadOp::Clear(BACKGROUND),
+                    wgpu::LoadOp::Clear(background),
                 ))],
                 depth_stencil_attachment: None,
                 timestamp_writes: None,
@@ -302,7 +295,7 @@ impl WindowSurface {
             }
             wgpu::LoadOp::Load
         } else {
-            wgpu::LoadOp::Clear(BACKGROUND)
+            wgpu::LoadOp::Clear(background)
         }
     }
 
