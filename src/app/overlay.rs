@@ -32,8 +32,6 @@ pub(super) struct OverlayFrame {
     to_free: Vec<egui::TextureId>,
     /// When egui wants to be drawn again.
     pub repaint_delay: Duration,
-    /// The theme's panel colour, for [`background`].
-    panel_fill: egui::Color32,
 }
 
 /// An [`OverlayFrame`] tessellated and uploaded, ready to draw.
@@ -59,14 +57,8 @@ pub(super) fn panel_frame(style: &egui::Style) -> egui::Frame {
 /// non-sRGB targets, where egui writes its (sRGB-encoded) colours as they
 /// are.
 pub(super) fn background(fill: egui::Color32) -> wgpu::Color {
-    let [r, g, b, _] = fill.to_array();
-    let unorm = |c: u8| f64::from(c) / 255.0;
-    wgpu::Color {
-        r: unorm(r),
-        g: unorm(g),
-        b: unorm(b),
-        a: 1.0,
-    }
+    let [r, g, b, _] = fill.to_normalized_gamma_f32().map(f64::from);
+    wgpu::Color { r, g, b, a: 1.0 }
 }
 
 impl Overlay {
@@ -108,7 +100,6 @@ impl Overlay {
     ) -> OverlayFrame {
         let raw = self.state.take_egui_input(window);
         let mut full = self.ctx.run_ui(raw, build);
-        let panel_fill = self.ctx.global_style().visuals.panel_fill;
         for (id, deltas) in full.textures_delta.set.drain() {
             for delta in &deltas {
                 self.renderer
@@ -128,7 +119,6 @@ impl Overlay {
             pixels_per_point: full.pixels_per_point,
             to_free,
             repaint_delay,
-            panel_fill,
         }
     }
 
@@ -155,7 +145,7 @@ impl Overlay {
             screen,
             extra,
             to_free: frame.to_free,
-            background: background(frame.panel_fill),
+            background: background(self.ctx.global_style().visuals.panel_fill),
         }
     }
 
