@@ -374,3 +374,49 @@ fn camera_path_drives_the_view() {
         view.len()
     );
 }
+
+/// The window times one frame in four (`app::timing::TIMED_EVERY`):
+/// timing every frame costs lavapipe about 2% of a frame. Of 12 frames
+/// that sample (perhaps 13, with one before the count starts), at most
+/// ceil(13 / 4) = 4 are timed; timing every frame whose predecessor's
+/// read-back is in would give 6 to 12. At least one timed frame's
+/// read-back comes in before the last frame.
+#[test]
+fn the_window_times_one_frame_in_four() {
+    let x = start_xvfb();
+    let dir = scratch("timed-frames");
+    let out = run_celray(
+        &[
+            "view",
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--no-vsync",
+            "--spp",
+            "1000",
+            "--exit-after-frames",
+            "12",
+            "--report-frame-times",
+            "--no-watch",
+        ],
+        Some(&x.display),
+        &dir,
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let timed: u32 = stdout
+        .split("GPU per frame (mean of ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no GPU pass times in:\n{stdout}"));
+    assert!(
+        (1..=4).contains(&timed),
+        "{timed} of 12 frames timed:\n{stdout}"
+    );
+}

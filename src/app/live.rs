@@ -291,10 +291,8 @@ impl LiveApp {
 
     /// Samples: every shown view that has not converged. True if any ran.
     fn sample_views(&mut self) -> bool {
-        if let Some(t) = &mut self.timer {
-            t.begin_frame();
-        }
-        let (sampled, error) = self.views.sample(&self.gpu, self.model.samples_per_frame);
+        let timed = self.timer.as_mut().is_some_and(FrameTimer::begin_frame);
+        let (sampled, error) = (self.views).sample(&self.gpu, self.model.samples_per_frame, timed);
         if let Some(e) = error {
             self.model.error = Some(e.to_string());
         }

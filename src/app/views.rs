@@ -440,12 +440,14 @@ impl ViewSlots {
     }
 
     /// Renders up to `per_view` samples into every shown view that has not
-    /// converged. Returns whether any sample was rendered, and the first
-    /// error (after which that view renders no more this frame).
-    pub fn sample(&mut self, gpu: &Gpu, per_view: u32) -> (bool, Option<GpuError>) {
+    /// converged, their passes timed where `timed`. Returns whether any
+    /// sample was rendered, and the first error (after which that view
+    /// renders no more this frame).
+    pub fn sample(&mut self, gpu: &Gpu, per_view: u32, timed: bool) -> (bool, Option<GpuError>) {
         let mut sampled = false;
         let mut error = None;
         for renderer in self.slots.iter_mut().filter_map(|s| s.renderer.as_mut()) {
+            renderer.time_samples(timed);
             for _ in 0..per_view {
                 if renderer.converged() {
                     break;

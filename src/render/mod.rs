@@ -95,6 +95,8 @@ struct SampleTimer {
     timer: GpuTimer,
     /// Whether the last sample was timed (its round had a free slot).
     last_timed: bool,
+    /// Whether samples are timed at all ([`Renderer::time_samples`]).
+    on: bool,
     raster: Span,
     trace: Span,
     outline_tiles: Span,
@@ -109,6 +111,7 @@ impl SampleTimer {
         Some(SampleTimer {
             timer,
             last_timed: false,
+            on: true,
             raster,
             trace,
             outline_tiles,
@@ -870,7 +873,7 @@ impl Renderer {
             uniforms.background[2],
         ];
         let timed = self.timer.as_mut().is_some_and(|t| {
-            t.last_timed = t.timer.begin();
+            t.last_timed = t.on && t.timer.begin();
             t.last_timed
         });
         let mut timer = self.timer.as_mut().filter(|_| timed);
@@ -965,6 +968,15 @@ impl Renderer {
             self.timer = SampleTimer::new(gpu);
         }
         self.timer.is_some()
+    }
+
+    /// Whether the next samples are timed, where pass timing is enabled (on
+    /// by default; the window times one frame in a few,
+    /// `app::timing::FrameTimer`).
+    pub fn time_samples(&mut self, on: bool) {
+        if let Some(t) = &mut self.timer {
+            t.on = on;
+        }
     }
 
     /// GPU milliseconds per pass of the last sample, in the order of
