@@ -465,7 +465,34 @@ fn interleaved_row(y: u32, rows: u32, threads: u32) -> u32 {
 }
 
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
-fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+fn main(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    // A dispatch of one workgroup per tile (on a GPU) shades the workgroup's
+    // tile, its row in interleaved_row's order. A smaller one (on the CPU
+    // driver, render::trace) loops: workgroup w shades tiles w, w + n,
+    // w + 2n, ... of the n it is one of. The driver starts every workgroup
+    // of a dispatch at a cost (a kernel hashing and writing one word a
+    // pixel at 1280 x 720: 6.8 ms as 14,400 workgroups, 1.7 ms as 2 that
+    // loop; docs/performance.md), and each of its threads takes a
+    // contiguous run of the workgroups, so each gets every n-th tile of
+    // the whole image.
+    let tiles = (frame.size_px + vec2<u32>(TRACE_WORKGROUP - 1u)) / TRACE_WORKGROUP;
+    let count = tiles.x * tiles.y;
+    let stride = groups.x * groups.y;
+    if stride >= count {
+        trace_tile(vec2<u32>(wg.x, interleaved_row(wg.y, tiles.y, frame.dispatch_threads)), li);
+        return;
+    }
+    for (var t = wg.y * groups.x + wg.x; t < count; t += stride) {
+        trace_tile(vec2<u32>(t % tiles.x, t / tiles.x), li);
+    }
+}
+
+// One invocation's pixel of `tile`.
+fn trace_tile(tile: vec2<u32>, li: u32) {
     // The CPU driver runs 8 consecutive invocations as one program, and a
     // branch or loop costs all 8 whenever one of them needs it. Each 8 is
     // laid out as a 4 x 2 block of pixels rather than a row of 8, so their
@@ -479,9 +506,6 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     // and write nothing: every invocation makes each trace call together
     // (trace_converged and trace_masked, lib/trace_bvh.wgsl), which the
     // packet walk needs.
-    // The workgroup's tile, its row in interleaved_row's order.
-    let rows = (frame.size_px.y + TRACE_WORKGROUP - 1u) / TRACE_WORKGROUP;
-    let tile = vec2<u32>(wg.x, interleaved_row(wg.y, rows, frame.dispatch_threads));
     let inside = all(tile * TRACE_WORKGROUP + local < frame.size_px);
     let gid = min(tile * TRACE_WORKGROUP + local, frame.size_px - 1u);
     steps_left = MAX_INVOCATION_STEPS;

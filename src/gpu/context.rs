@@ -87,6 +87,10 @@ fn mesa_major(driver_info: &str) -> Option<u32> {
     rest.split('.').next()?.parse().ok()
 }
 
+/// Workgroups of the trace pass per driver thread on a CPU adapter
+/// ([`Gpu::set_trace_groups`]).
+pub const TRACE_GROUPS_PER_THREAD: u32 = 1;
+
 /// [`AdapterSummary::dispatch_threads`] for a CPU adapter.
 fn cpu_dispatch_threads() -> u32 {
     let from_env = std::env::var("LP_NUM_THREADS")
@@ -185,6 +189,9 @@ pub struct Gpu {
     /// kernel's rows of tiles for ([`AdapterSummary::dispatch_threads`]
     /// unless a test sets another).
     dispatch_threads: AtomicU32,
+    /// How many workgroups the trace pass dispatches, each looping over
+    /// tiles; 0: one per tile (`set_trace_groups`).
+    trace_groups: AtomicU32,
     /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
@@ -334,6 +341,12 @@ impl Gpu {
         log::info!("adapter: {summary}");
         let packet_walk = AtomicBool::new(summary.packet_walk);
         let dispatch_threads = AtomicU32::new(summary.dispatch_threads);
+        let trace_groups =
+            AtomicU32::new(if adapter.get_info().device_type == wgpu::DeviceType::Cpu {
+                summary.dispatch_threads * TRACE_GROUPS_PER_THREAD
+            } else {
+                0
+            });
         Ok(Gpu {
             instance,
             adapter,
@@ -349,6 +362,7 @@ impl Gpu {
             shadow_lists: AtomicBool::new(true),
             primary_tiles: AtomicBool::new(true),
             dispatch_threads,
+            trace_groups,
             edge_tolerance: AtomicBool::new(edge_tolerance),
             packet_walk,
         })
@@ -440,6 +454,20 @@ impl Gpu {
 
     pub fn dispatch_threads(&self) -> u32 {
         self.dispatch_threads.load(Ordering::Relaxed)
+    }
+
+    /// How many workgroups the trace pass dispatches from now on, each
+    /// looping over every n-th tile (shaders/trace.wgsl); 0: one
+    /// workgroup per tile. By default [`TRACE_GROUPS_PER_THREAD`] per
+    /// thread on a CPU adapter, where starting a workgroup costs the
+    /// driver, and 0 on a GPU, which needs the workgroups to fill it. Any
+    /// count gives the same images (for tests and benchmarks).
+    pub fn set_trace_groups(&self, groups: u32) {
+        self.trace_groups.store(groups, Ordering::Relaxed);
+    }
+
+    pub fn trace_groups(&self) -> u32 {
+        self.trace_groups.load(Ordering::Relaxed)
     }
 
     /// Whether pipelines built from now on give the triangle test's edge

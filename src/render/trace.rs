@@ -85,6 +85,9 @@ pub struct TracePass {
     /// current scene is.
     driver: Option<DriverVariant>,
     driver_group: Option<wgpu::BindGroup>,
+    /// Workgroups a dispatch looping over the tiles has (0: one per
+    /// tile; [`Gpu::set_trace_groups`] when the pass was made).
+    groups: u32,
 }
 
 /// The trace pass composed with `lib/trace_rq.wgsl`: its own modules, so the
@@ -348,6 +351,7 @@ impl TracePass {
                 written_tiles: Vec::new(),
                 driver: None,
                 driver_group: None,
+                groups: gpu.trace_groups(),
             }
         })
     }
@@ -581,11 +585,17 @@ impl TracePass {
         if let Some(group) = &self.driver_group {
             pass.set_bind_group(driver_accel::DRIVER_GROUP, group, &[]);
         }
-        pass.dispatch_workgroups(
+        let groups = self.groups;
+        let tiles = (
             targets.width.div_ceil(TRACE_WORKGROUP),
             targets.height.div_ceil(TRACE_WORKGROUP),
-            1,
         );
+        // Fewer workgroups than tiles loop over them (trace.wgsl's main).
+        if groups > 0 && groups < tiles.0 * tiles.1 {
+            pass.dispatch_workgroups(groups, 1, 1);
+        } else {
+            pass.dispatch_workgroups(tiles.0, tiles.1, 1);
+        }
     }
 
     /// Pixels (summed over samples) whose traversal ran out of its step
