@@ -842,8 +842,45 @@ fn the_trace_pass_accumulates_the_tiles_no_outline_reaches_with_the_same_sums() 
 #[test]
 fn the_trace_kernels_row_order_changes_no_sum() {
     let gpu = gpu();
-    let default_groups = gpu.trace_groups();
     gpu.set_trace_groups(0);
+    assert_same_trace_sums(
+        &gpu,
+        |threads| gpu.set_dispatch_threads(threads),
+        1,
+        &[2, 3, 5, 7],
+        "rows ordered for this many threads",
+    );
+}
+
+/// On a CPU adapter the trace pass dispatches a few workgroups, each
+/// looping over every n-th tile (`Gpu::set_trace_groups`), instead of one
+/// workgroup per tile. Any count must give the same sums, bit for bit: a
+/// tile left out or shaded twice would leave its pixels counting 0 or 6
+/// samples after 3. At 164 x 92 (21 x 12 = 252 tiles): 1, 2, 5 and 20
+/// workgroups (5 and 20 do not divide 252) against one per tile.
+#[test]
+fn the_trace_kernels_looping_workgroups_change_no_sum() {
+    let gpu = gpu();
+    assert_same_trace_sums(
+        &gpu,
+        |groups| gpu.set_trace_groups(groups),
+        0,
+        &[1, 2, 5, 20],
+        "looping workgroups",
+    );
+}
+
+/// Renders the default scene (hybrid and raytrace) and mirrors (raytrace),
+/// 3 samples at 164 x 92, after `set(v)` for each of `values`, and checks
+/// the accumulator bit for bit against the one after `set(baseline)`,
+/// where every pixel must count 3 samples. `what` names the setting.
+fn assert_same_trace_sums(
+    gpu: &celray::gpu::Gpu,
+    set: impl Fn(u32),
+    baseline: u32,
+    values: &[u32],
+    what: &str,
+) {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
     let load = |file: &str| celray::scene::Scene::load(&dir.join(file)).unwrap();
     let cases = [
@@ -861,69 +898,24 @@ fn the_trace_kernels_row_order_changes_no_sum() {
     ];
     for (name, scene, mode) in cases {
         let settings = small_settings(mode);
-        let sums = |threads: u32| {
-            gpu.set_dispatch_threads(threads);
-            accumulator_bits(&gpu, &rendered(&gpu, scene.clone(), settings.clone()))
+        let sums = |v: u32| {
+            set(v);
+            accumulator_bits(gpu, &rendered(gpu, scene.clone(), settings.clone()))
         };
-        let image_order = sums(1);
+        let expected = sums(baseline);
         assert!(
-            image_order.iter().all(|a| f32::from_bits(a[3]) == 3.0),
-            "{name}: a pixel does not count 3 samples in the image's order"
+            expected.iter().all(|a| f32::from_bits(a[3]) == 3.0),
+            "{name}: a pixel does not count 3 samples with {baseline} {what}"
         );
-        for threads in [2, 3, 5, 7] {
-            let got = sums(threads);
-            let differ = (0..got.len()).filter(|&i| got[i] != image_order[i]).count();
+        for &v in values {
+            let got = sums(v);
+            let differ = (0..got.len()).filter(|&i| got[i] != expected[i]).count();
             assert_eq!(
                 differ, 0,
-                "{name}: {differ} pixels sum otherwise with rows ordered for {threads} threads"
+                "{name}: {differ} pixels sum otherwise with {v} {what}"
             );
         }
     }
-    gpu.set_dispatch_threads(gpu.summary.dispatch_threads);
-    gpu.set_trace_groups(default_groups);
-}
-
-/// On a CPU adapter the trace pass dispatches a few workgroups, each
-/// looping over every n-th tile (`Gpu::set_trace_groups`), instead of one
-/// workgroup per tile. Any count must give the same sums, bit for bit: a
-/// tile left out or shaded twice would leave its pixels counting 0 or 6
-/// samples after 3. At 164 x 92 (21 x 12 = 252 tiles): 1, 2, 5 and 20
-/// workgroups (5 and 20 do not divide 252) against one per tile.
-#[test]
-fn the_trace_kernels_looping_workgroups_change_no_sum() {
-    let gpu = gpu();
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
-    let load = |file: &str| celray::scene::Scene::load(&dir.join(file)).unwrap();
-    let cases = [
-        ("default hybrid", load("default.ron"), RenderMode::Hybrid),
-        (
-            "mirrors raytrace",
-            load("mirrors.ron"),
-            RenderMode::Raytrace,
-        ),
-    ];
-    let default_groups = gpu.trace_groups();
-    for (name, scene, mode) in cases {
-        let settings = small_settings(mode);
-        let sums = |groups: u32| {
-            gpu.set_trace_groups(groups);
-            accumulator_bits(&gpu, &rendered(&gpu, scene.clone(), settings.clone()))
-        };
-        let per_tile = sums(0);
-        assert!(
-            per_tile.iter().all(|a| f32::from_bits(a[3]) == 3.0),
-            "{name}: a pixel does not count 3 samples with a workgroup per tile"
-        );
-        for groups in [1, 2, 5, 20] {
-            let got = sums(groups);
-            let differ = (0..got.len()).filter(|&i| got[i] != per_tile[i]).count();
-            assert_eq!(
-                differ, 0,
-                "{name}: {differ} pixels sum otherwise with {groups} looping workgroups"
-            );
-        }
-    }
-    gpu.set_trace_groups(default_groups);
 }
 
 /// The accumulate pass searches for outlines in a kernel of its own, over
