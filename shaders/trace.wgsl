@@ -435,62 +435,27 @@ fn cone_axes(d: vec3<f32>, n: vec3<f32>, width: f32) -> array<vec3<f32>, 2> {
     return array<vec3<f32>, 2>(along * (width / cos_t), cross(n, along) * width);
 }
 
-// The row of tiles that the y-th of `rows` rows of workgroups shades
-// (src/gpu/twins.rs, interleaved_row, is the twin and says why): each
-// residue class of rows mod T = `threads` in turn, classes 0, 2, 4, ...
-// from the top down (k, k + T, k + 2T, ...) and classes 1, 3, 5, ... from
-// the bottom up.
-fn interleaved_row(y: u32, rows: u32, threads: u32) -> u32 {
-    let t = max(threads, 1u);
-    let q = rows / t;
-    let r = rows % t;
-    // The first r classes hold q + 1 rows, the others q.
-    let long = r * (q + 1u);
-    var k: u32;
-    var j: u32;
-    var count: u32;
-    if y < long {
-        count = q + 1u;
-        k = y / count;
-        j = y % count;
-    } else {
-        count = max(q, 1u);
-        k = r + (y - long) / count;
-        j = (y - long) % count;
-    }
-    if (k & 1u) == 1u {
-        j = count - 1u - j;
-    }
-    return k + j * t;
-}
-
 @compute @workgroup_size(TRACE_WORKGROUP, TRACE_WORKGROUP)
 fn main(
     @builtin(workgroup_id) wg: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
-    // A dispatch of one workgroup per tile (on a GPU) shades the workgroup's
-    // tile, its row in interleaved_row's order. A smaller one (on the CPU
-    // driver, render::trace) loops: workgroup w shades tiles w, w + n,
-    // w + 2n, ... of the n it is one of. The driver starts every workgroup
-    // of a dispatch at a cost (a kernel hashing and writing one word a
-    // pixel at 1280 x 720: 6.8 ms as 14,400 workgroups, 1.7 ms as 2 that
-    // loop; docs/performance.md), and each of its threads takes a
-    // contiguous run of the workgroups, so each gets every n-th tile of
-    // the whole image.
-    // One call of trace_tile: the driver inlines every call, and the
-    // kernel's compile time grows with each copy (two calls took the
-    // default scene's first frame from about 30 to 61 s of CPU).
+    // Workgroup w of a dispatch of n shades tiles w, w + n, w + 2n, ...
+    // (row-major). A GPU gets one workgroup per tile (a grid of the
+    // tiles: one pass of the loop, the workgroup's own tile). The CPU
+    // driver gets a few (render::trace): it starts every workgroup at a
+    // cost (a kernel hashing and writing one word a pixel at 1280 x 720:
+    // 6.8 ms as 14,400 workgroups, 1.7 ms as 2 that loop;
+    // docs/performance.md), and each of its threads takes a contiguous
+    // run of the workgroups, so each gets every n-th tile of the whole
+    // image. One call of trace_tile: the driver inlines every call, and
+    // the kernel's compile time grows with each copy.
     let tiles = (frame.size_px + vec2<u32>(TRACE_WORKGROUP - 1u)) / TRACE_WORKGROUP;
     let count = tiles.x * tiles.y;
     let stride = groups.x * groups.y;
     for (var t = wg.y * groups.x + wg.x; t < count; t += stride) {
-        var tile = vec2<u32>(t % tiles.x, t / tiles.x);
-        if stride >= count {
-            tile = vec2<u32>(wg.x, interleaved_row(wg.y, tiles.y, frame.dispatch_threads));
-        }
-        trace_tile(tile, li);
+        trace_tile(vec2<u32>(t % tiles.x, t / tiles.x), li);
     }
 }
 

@@ -83,10 +83,10 @@ fn twins_match_wgsl_layouts() {
             max_bounces,
             ray_epsilon,
             trace_accumulates,
-            dispatch_threads,
             _pad0,
             _pad1,
-            _pad2
+            _pad2,
+            _pad3
         }
     );
     check_twin!(

@@ -828,30 +828,6 @@ fn the_trace_pass_accumulates_the_tiles_no_outline_reaches_with_the_same_sums() 
     }
 }
 
-/// The trace kernel's y-th row of workgroups shades the row of tiles that
-/// `interleaved_row` gives for the driver's thread count, so that each of
-/// lavapipe's threads, which takes a contiguous run of the dispatch,
-/// shades rows from all over the image. Any count must give the same
-/// sums, bit for bit: a row of tiles left out or shaded twice would leave
-/// its pixels counting 0 or 6 samples after 3, or holding another
-/// sample's colour. Counts 2, 3, 5 and 7 against 1 (the image's own
-/// order), at 164 x 92: 12 rows of tiles, so 5 and 7 threads make classes
-/// of unequal length, and the odd classes run from the bottom up. With a
-/// workgroup per tile, as on a GPU (on a CPU adapter the workgroups loop
-/// over the tiles instead: the next test).
-#[test]
-fn the_trace_kernels_row_order_changes_no_sum() {
-    let gpu = gpu();
-    gpu.set_trace_groups(0);
-    assert_same_trace_sums(
-        &gpu,
-        |threads| gpu.set_dispatch_threads(threads),
-        1,
-        &[2, 3, 5, 7],
-        "rows ordered for this many threads",
-    );
-}
-
 /// On a CPU adapter the trace pass dispatches a few workgroups, each
 /// looping over every n-th tile (`Gpu::set_trace_groups`), instead of one
 /// workgroup per tile. Any count must give the same sums, bit for bit: a
@@ -861,26 +837,6 @@ fn the_trace_kernels_row_order_changes_no_sum() {
 #[test]
 fn the_trace_kernels_looping_workgroups_change_no_sum() {
     let gpu = gpu();
-    assert_same_trace_sums(
-        &gpu,
-        |groups| gpu.set_trace_groups(groups),
-        0,
-        &[1, 2, 5, 20],
-        "looping workgroups",
-    );
-}
-
-/// Renders the default scene (hybrid and raytrace) and mirrors (raytrace),
-/// 3 samples at 164 x 92, after `set(v)` for each of `values`, and checks
-/// the accumulator bit for bit against the one after `set(baseline)`,
-/// where every pixel must count 3 samples. `what` names the setting.
-fn assert_same_trace_sums(
-    gpu: &celray::gpu::Gpu,
-    set: impl Fn(u32),
-    baseline: u32,
-    values: &[u32],
-    what: &str,
-) {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
     let load = |file: &str| celray::scene::Scene::load(&dir.join(file)).unwrap();
     let cases = [
@@ -899,20 +855,20 @@ fn assert_same_trace_sums(
     for (name, scene, mode) in cases {
         let settings = small_settings(mode);
         let sums = |v: u32| {
-            set(v);
-            accumulator_bits(gpu, &rendered(gpu, scene.clone(), settings.clone()))
+            gpu.set_trace_groups(v);
+            accumulator_bits(&gpu, &rendered(&gpu, scene.clone(), settings.clone()))
         };
-        let expected = sums(baseline);
+        let expected = sums(0);
         assert!(
             expected.iter().all(|a| f32::from_bits(a[3]) == 3.0),
-            "{name}: a pixel does not count 3 samples with {baseline} {what}"
+            "{name}: a pixel does not count 3 samples with a workgroup per tile"
         );
-        for &v in values {
+        for v in [1, 2, 5, 20] {
             let got = sums(v);
             let differ = (0..got.len()).filter(|&i| got[i] != expected[i]).count();
             assert_eq!(
                 differ, 0,
-                "{name}: {differ} pixels sum otherwise with {v} {what}"
+                "{name}: {differ} pixels sum otherwise with {v} looping workgroups"
             );
         }
     }

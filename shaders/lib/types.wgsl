@@ -36,13 +36,10 @@ struct FrameUniforms {
     // accumulator itself, so the outline marks flag them
     // OUTLINE_MARK_TRACED and the accumulate pass leaves them alone.
     trace_accumulates: u32,
-    // How many threads the driver splits a compute dispatch among (1 on a
-    // GPU): the trace kernel takes its rows of tiles in interleaved_row's
-    // order for it (src/gpu/twins.rs has the twin and the reasons).
-    dispatch_threads: u32,
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
+    _pad3: u32,
 }
 
 const RENDER_MODE_RASTER: u32 = 0u;

@@ -63,8 +63,8 @@ pub struct AdapterSummary {
     /// How many threads the driver splits a compute dispatch among: on a
     /// CPU adapter (lavapipe) `LP_NUM_THREADS` where set, else the CPUs
     /// this process may run on, at most 32 (Mesa's `LP_MAX_THREADS`); 1 on
-    /// a GPU. The trace kernel orders its rows of tiles for it
-    /// ([`crate::gpu::twins::interleaved_row`]).
+    /// a GPU. The trace pass starts [`TRACE_GROUPS_PER_THREAD`]
+    /// workgroups per thread on a CPU adapter ([`Gpu::set_trace_groups`]).
     pub dispatch_threads: u32,
 }
 
@@ -185,10 +185,6 @@ pub struct Gpu {
     /// tile's instances (`accel::screen_tiles`); tests turn it off to
     /// check the tiles against the BVH walk.
     primary_tiles: AtomicBool,
-    /// The thread count renderers made from now on order the trace
-    /// kernel's rows of tiles for ([`AdapterSummary::dispatch_threads`]
-    /// unless a test sets another).
-    dispatch_threads: AtomicU32,
     /// How many workgroups the trace pass dispatches, each looping over
     /// tiles; 0: one per tile (`set_trace_groups`).
     trace_groups: AtomicU32,
@@ -340,7 +336,6 @@ impl Gpu {
         }));
         log::info!("adapter: {summary}");
         let packet_walk = AtomicBool::new(summary.packet_walk);
-        let dispatch_threads = AtomicU32::new(summary.dispatch_threads);
         let trace_groups =
             AtomicU32::new(if adapter.get_info().device_type == wgpu::DeviceType::Cpu {
                 summary.dispatch_threads * TRACE_GROUPS_PER_THREAD
@@ -361,7 +356,6 @@ impl Gpu {
             trace_accumulates: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
             primary_tiles: AtomicBool::new(true),
-            dispatch_threads,
             trace_groups,
             edge_tolerance: AtomicBool::new(edge_tolerance),
             packet_walk,
@@ -441,19 +435,6 @@ impl Gpu {
 
     pub fn primary_tiles(&self) -> bool {
         self.primary_tiles.load(Ordering::Relaxed)
-    }
-
-    /// The thread count that renderers made from now on order the trace
-    /// kernel's rows of tiles for (`crate::gpu::twins::interleaved_row`;
-    /// at least 1): any count gives the same images, only the driver's
-    /// split of the work changes (for tests and benchmarks).
-    pub fn set_dispatch_threads(&self, threads: u32) {
-        self.dispatch_threads
-            .store(threads.max(1), Ordering::Relaxed);
-    }
-
-    pub fn dispatch_threads(&self) -> u32 {
-        self.dispatch_threads.load(Ordering::Relaxed)
     }
 
     /// How many workgroups the trace pass dispatches from now on, each

@@ -69,13 +69,10 @@ pub struct FrameUniforms {
     /// 1 where the trace pass adds the colour of the tiles its tile words
     /// flag [`TILE_TRACE_ACCUMULATES`] to the accumulator itself.
     pub trace_accumulates: u32,
-    /// How many threads the driver splits a compute dispatch among (1 on
-    /// a GPU): the trace kernel's rows of workgroups shade the rows of
-    /// tiles in [`interleaved_row`]'s order for it.
-    pub dispatch_threads: u32,
     pub _pad0: u32,
     pub _pad1: u32,
     pub _pad2: u32,
+    pub _pad3: u32,
 }
 
 pub const RENDER_MODE_RASTER: u32 = 0;
@@ -216,37 +213,6 @@ pub const MAX_OUTLINE_RADIUS: u32 = 8;
 pub const LIGHTS_DYNAMIC: u32 = u32::MAX;
 /// Workgroup edge of the trace kernel (8 x 8 invocations).
 pub const TRACE_WORKGROUP: u32 = 8;
-/// The row of tiles that the `y`-th of `rows` rows of a dispatch's
-/// workgroups shades, where the driver splits a dispatch among `threads`
-/// threads: each residue class of rows mod T (T = `threads`) in turn,
-/// classes 0, 2, 4, ... from the top down (k, k + T, k + 2T, ...) and
-/// classes 1, 3, 5, ... from the bottom up. The WGSL twin is
-/// `interleaved_row` in shaders/trace.wgsl.
-///
-/// lavapipe hands each of its threads one contiguous run of a dispatch's
-/// workgroups in row-major order (`num_iters / num_threads` each, Mesa's
-/// lp_cs_tpool.c). In the image's own order that is a band of the image
-/// per thread, and where the costly pixels sit in one band (a floor of
-/// mirrors below an empty sky), one thread works on while the others
-/// wait at the dispatch's end. In this order each thread's run is about
-/// one residue class, every T-th row, spread over the whole image. On 2
-/// threads, the second class from the bottom up measured 0.95-0.97 of
-/// the time of both from the top down (docs/performance.md).
-pub fn interleaved_row(y: u32, rows: u32, threads: u32) -> u32 {
-    let threads = threads.max(1);
-    let q = rows / threads;
-    let r = rows % threads;
-    // The first r classes hold q + 1 rows, the others q.
-    let long = r * (q + 1);
-    let (class, j, count) = if y < long {
-        (y / (q + 1), y % (q + 1), q + 1)
-    } else {
-        let count = q.max(1);
-        (r + (y - long) / count, (y - long) % count, count)
-    };
-    let j = if class % 2 == 1 { count - 1 - j } else { j };
-    class + j * threads
-}
 
 /// Rows of the trace kernel's output buffers start every this many pixels
 /// (`render::targets::TracedOutput`): a copy into a texture needs rows
@@ -309,53 +275,4 @@ pub struct ReprojectUniforms {
     pub depth_tolerance: f32,
     /// `TEMPORAL_REJECT_*`.
     pub rejection: u32,
-}
-
-#[cfg(test)]
-mod tests {
-    use super::interleaved_row;
-
-    /// The order is a permutation of the rows, and the contiguous run of
-    /// it that each of T threads takes (`rows / T` rows each) leaves no
-    /// row of the image more than T^2 rows from one of its own (T^2 from
-    /// the remainder rows shifting each run off its residue class): where
-    /// T divides the rows, the run is exactly one residue class mod T. The
-    /// image's own order, a band per thread, leaves rows - rows / T.
-    #[test]
-    fn each_threads_run_of_rows_spans_the_image() {
-        for rows in 1..=600u32 {
-            for threads in 1..=8u32 {
-                let order: Vec<u32> = (0..rows)
-                    .map(|y| interleaved_row(y, rows, threads))
-                    .collect();
-                let mut sorted = order.clone();
-                sorted.sort_unstable();
-                assert_eq!(
-                    sorted,
-                    (0..rows).collect::<Vec<_>>(),
-                    "{rows} rows, {threads} threads"
-                );
-                let run = (rows / threads) as usize;
-                if threads == 1 || run == 0 {
-                    continue;
-                }
-                for (k, chunk) in order.chunks_exact(run).take(threads as usize).enumerate() {
-                    let mut mine = chunk.to_vec();
-                    mine.sort_unstable();
-                    // The largest distance from a row of the image to the
-                    // nearest of the run's, plus one.
-                    let ends = [mine[0] + 1, rows - mine[run - 1]];
-                    let gaps = mine.windows(2).map(|w| w[1] - w[0]);
-                    let widest = gaps.chain(ends).max().unwrap();
-                    assert!(
-                        widest <= threads * threads,
-                        "{rows} rows, {threads} threads, run {k}: {mine:?}"
-                    );
-                    if rows % threads == 0 {
-                        assert!(mine.iter().all(|&r| r % threads == k as u32));
-                    }
-                }
-            }
-        }
-    }
 }

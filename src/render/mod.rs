@@ -189,9 +189,6 @@ pub struct Renderer {
     /// reaches to the accumulator itself, where it reads primary tiles
     /// ([`Gpu::set_trace_accumulates`] when the renderer was made).
     trace_may_accumulate: bool,
-    /// The thread count the trace kernel orders its rows of tiles for
-    /// ([`Gpu::dispatch_threads`] when the renderer was made).
-    dispatch_threads: u32,
 }
 
 /// The driver's structures for `scene` where `settings.accel` asks for them
@@ -263,7 +260,6 @@ impl Renderer {
             temporal: TemporalState::default(),
             tile_px: None,
             trace_may_accumulate: gpu.trace_accumulates(),
-            dispatch_threads: gpu.dispatch_threads(),
         };
         renderer.bind(gpu)?;
         Ok(renderer)
@@ -702,10 +698,10 @@ impl Renderer {
             // Set by render_sample, which knows whether the trace pass
             // reads its tiles.
             trace_accumulates: 0,
-            dispatch_threads: self.dispatch_threads,
             _pad0: 0,
             _pad1: 0,
             _pad2: 0,
+            _pad3: 0,
         }
     }
 

@@ -585,14 +585,13 @@ impl TracePass {
         if let Some(group) = &self.driver_group {
             pass.set_bind_group(driver_accel::DRIVER_GROUP, group, &[]);
         }
-        let groups = self.groups;
         let tiles = (
             targets.width.div_ceil(TRACE_WORKGROUP),
             targets.height.div_ceil(TRACE_WORKGROUP),
         );
         // Fewer workgroups than tiles loop over them (trace.wgsl's main).
-        if groups > 0 && groups < tiles.0 * tiles.1 {
-            pass.dispatch_workgroups(groups, 1, 1);
+        if self.groups > 0 && self.groups < tiles.0 * tiles.1 {
+            pass.dispatch_workgroups(self.groups, 1, 1);
         } else {
             pass.dispatch_workgroups(tiles.0, tiles.1, 1);
         }
