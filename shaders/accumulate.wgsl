@@ -270,21 +270,31 @@ fn outline_radius() -> i32 {
 fn main(
     @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let tiles = (frame.size_px + vec2<u32>(ACCUMULATE_TILE - 1u)) / ACCUMULATE_TILE;
+    let total = tiles.x * tiles.y;
     let outlines = outline_radius() > 0;
-    var tile = wg.y * tiles.x + wg.x;
-    if outlines && frame.trace_accumulates != 0u && outline_dispatch[3] == OUTLINE_TILES_LISTED {
-        tile = tile_list[tiles.x * tiles.y - 1u - wg.x];
-    } else if outlines && tile_marks[tile] != 0u {
-        // The whole workgroup agrees, so the CPU driver skips the rest at once.
-        return;
-    }
-    let column = vec2<u32>(tile % tiles.x, tile / tiles.x) * ACCUMULATE_TILE + vec2<u32>(lid.x, 0u);
-    for (var row = 0u; row < ACCUMULATE_TILE; row++) {
-        let gid = column + vec2<u32>(0u, row);
-        if gid.x < frame.size_px.x && gid.y < frame.size_px.y {
-            add_sample(gid, gbuffer_color(vec2<i32>(gid)));
+    let listed = outlines && frame.trace_accumulates != 0u && outline_dispatch[3] == OUTLINE_TILES_LISTED;
+    let count = select(total, outline_dispatch[MAIN_DISPATCH_WORD], listed);
+    // Workgroup w of n takes the w-th, (w + n)-th, ... of its tiles, as the
+    // trace pass does: a GPU gets one workgroup per tile (a grid of every
+    // tile, or the indirect dispatch's count of listed ones: one pass of
+    // the loop), the CPU driver a few that loop (render::accumulate).
+    for (var k = wg.y * groups.x + wg.x; k < count; k += groups.x * groups.y) {
+        var tile = k;
+        if listed {
+            tile = tile_list[total - 1u - k];
+        } else if outlines && tile_marks[tile] != 0u {
+            // The whole workgroup agrees, so the CPU driver skips the rest at once.
+            continue;
+        }
+        let column = vec2<u32>(tile % tiles.x, tile / tiles.x) * ACCUMULATE_TILE + vec2<u32>(lid.x, 0u);
+        for (var row = 0u; row < ACCUMULATE_TILE; row++) {
+            let gid = column + vec2<u32>(0u, row);
+            if gid.x < frame.size_px.x && gid.y < frame.size_px.y {
+                add_sample(gid, gbuffer_color(vec2<i32>(gid)));
+            }
         }
     }
 }
@@ -299,55 +309,62 @@ fn main(
 fn outlined(
     @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let r = outline_radius();
     let span = i32(ACCUMULATE_TILE) + 2 * r;
     let tiles_x = (frame.size_px.x + ACCUMULATE_TILE - 1u) / ACCUMULATE_TILE;
-    var tile: u32;
-    if outline_dispatch[3] == OUTLINE_TILES_LISTED {
-        tile = tile_list[wg.x];
-    } else {
-        tile = wg.y * tiles_x + wg.x;
-        if tile_marks[tile] != OUTLINE_MARK_SEARCH {
-            return;
+    let listed = outline_dispatch[3] == OUTLINE_TILES_LISTED;
+    let total = tiles_x * ((frame.size_px.y + ACCUMULATE_TILE - 1u) / ACCUMULATE_TILE);
+    let count = select(total, outline_dispatch[0], listed);
+    // Workgroup w of n takes the w-th, (w + n)-th, ... of its tiles, as in
+    // `main`.
+    for (var k = wg.y * groups.x + wg.x; k < count; k += groups.x * groups.y) {
+        var tile = k;
+        if listed {
+            tile = tile_list[k];
+        } else if tile_marks[tile] != OUTLINE_MARK_SEARCH {
+            continue;
         }
-    }
-    let origin = vec2<u32>(tile % tiles_x, tile / tiles_x) * ACCUMULATE_TILE;
-    load_tile(vec2<i32>(origin) - vec2<i32>(r), span, lid.x);
-    workgroupBarrier();
-    if r >= PIXEL_PROOF_MIN_RADIUS {
-        mark_texels(span, r, lid.x);
+        let origin = vec2<u32>(tile % tiles_x, tile / tiles_x) * ACCUMULATE_TILE;
+        load_tile(vec2<i32>(origin) - vec2<i32>(r), span, lid.x);
         workgroupBarrier();
-        or_rows(span, r, lid.x);
-        workgroupBarrier();
-    }
-    // Each invocation down its column of the tile, as in `main`.
-    for (var row = 0u; row < ACCUMULATE_TILE; row++) {
-        let l = vec2<u32>(lid.x, row);
-        let gid = origin + l;
-        // Wide outlines: only the pixels whose search could find
-        // something search (the CPU driver skips it for 8 neighbours that
-        // all agree).
-        var search = true;
         if r >= PIXEL_PROOF_MIN_RADIUS {
-            search = pixel_needs_search(vec2<i32>(l), span, r);
+            mark_texels(span, r, lid.x);
+            workgroupBarrier();
+            or_rows(span, r, lid.x);
+            workgroupBarrier();
         }
-        if gid.x < frame.size_px.x && gid.y < frame.size_px.y {
-            var c = gbuffer_color(vec2<i32>(gid));
-            if search {
-                // The usual outlines (1.5 px) search at r = 1: a call with
-                // the constant lets the driver unroll the 3 x 3 search
-                // (accumulate pass 0.92-0.94 of the time;
-                // docs/performance-history.md, twenty-first session).
-                var o: vec4<f32>;
-                if r == 1 {
-                    o = outline_at(vec2<i32>(l) + vec2<i32>(1), span, 1);
-                } else {
-                    o = outline_at(vec2<i32>(l) + vec2<i32>(r), span, r);
-                }
-                c = mix(c, o.rgb, o.a);
+        // Each invocation down its column of the tile, as in `main`.
+        for (var row = 0u; row < ACCUMULATE_TILE; row++) {
+            let l = vec2<u32>(lid.x, row);
+            let gid = origin + l;
+            // Wide outlines: only the pixels whose search could find
+            // something search (the CPU driver skips it for 8 neighbours that
+            // all agree).
+            var search = true;
+            if r >= PIXEL_PROOF_MIN_RADIUS {
+                search = pixel_needs_search(vec2<i32>(l), span, r);
             }
-            add_sample(gid, c);
+            if gid.x < frame.size_px.x && gid.y < frame.size_px.y {
+                var c = gbuffer_color(vec2<i32>(gid));
+                if search {
+                    // The usual outlines (1.5 px) search at r = 1: a call with
+                    // the constant lets the driver unroll the 3 x 3 search
+                    // (accumulate pass 0.92-0.94 of the time;
+                    // docs/performance-history.md, twenty-first session).
+                    var o: vec4<f32>;
+                    if r == 1 {
+                        o = outline_at(vec2<i32>(l) + vec2<i32>(1), span, 1);
+                    } else {
+                        o = outline_at(vec2<i32>(l) + vec2<i32>(r), span, r);
+                    }
+                    c = mix(c, o.rgb, o.a);
+                }
+                add_sample(gid, c);
+            }
         }
+        // The next tile's load overwrites what this one's search reads.
+        workgroupBarrier();
     }
 }

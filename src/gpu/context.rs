@@ -63,8 +63,9 @@ pub struct AdapterSummary {
     /// How many threads the driver splits a compute dispatch among: on a
     /// CPU adapter (lavapipe) `LP_NUM_THREADS` where set, else the CPUs
     /// this process may run on, at most 32 (Mesa's `LP_MAX_THREADS`); 1 on
-    /// a GPU. The trace pass starts [`TRACE_GROUPS_PER_THREAD`]
-    /// workgroups per thread on a CPU adapter ([`Gpu::set_trace_groups`]).
+    /// a GPU. The trace and accumulate passes start
+    /// [`LOOPING_GROUPS_PER_THREAD`] workgroups per thread on a CPU
+    /// adapter ([`Gpu::set_looping_groups`]).
     pub dispatch_threads: u32,
 }
 
@@ -87,9 +88,9 @@ fn mesa_major(driver_info: &str) -> Option<u32> {
     rest.split('.').next()?.parse().ok()
 }
 
-/// Workgroups of the trace pass per driver thread on a CPU adapter
-/// ([`Gpu::set_trace_groups`]).
-pub const TRACE_GROUPS_PER_THREAD: u32 = 1;
+/// Workgroups of the trace and accumulate kernels per driver thread on a
+/// CPU adapter, each looping over tiles ([`Gpu::set_looping_groups`]).
+pub const LOOPING_GROUPS_PER_THREAD: u32 = 1;
 
 /// [`AdapterSummary::dispatch_threads`] for a CPU adapter.
 fn cpu_dispatch_threads() -> u32 {
@@ -185,9 +186,9 @@ pub struct Gpu {
     /// tile's instances (`accel::screen_tiles`); tests turn it off to
     /// check the tiles against the BVH walk.
     primary_tiles: AtomicBool,
-    /// How many workgroups the trace pass dispatches, each looping over
-    /// tiles; 0: one per tile (`set_trace_groups`).
-    trace_groups: AtomicU32,
+    /// How many workgroups the trace and accumulate kernels dispatch,
+    /// each looping over tiles; 0: one per tile (`set_looping_groups`).
+    looping_groups: AtomicU32,
     /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
@@ -336,9 +337,9 @@ impl Gpu {
         }));
         log::info!("adapter: {summary}");
         let packet_walk = AtomicBool::new(summary.packet_walk);
-        let trace_groups =
+        let looping_groups =
             AtomicU32::new(if adapter.get_info().device_type == wgpu::DeviceType::Cpu {
-                summary.dispatch_threads * TRACE_GROUPS_PER_THREAD
+                summary.dispatch_threads * LOOPING_GROUPS_PER_THREAD
             } else {
                 0
             });
@@ -356,7 +357,7 @@ impl Gpu {
             trace_accumulates: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
             primary_tiles: AtomicBool::new(true),
-            trace_groups,
+            looping_groups,
             edge_tolerance: AtomicBool::new(edge_tolerance),
             packet_walk,
         })
@@ -437,18 +438,20 @@ impl Gpu {
         self.primary_tiles.load(Ordering::Relaxed)
     }
 
-    /// How many workgroups the trace pass dispatches from now on, each
-    /// looping over every n-th tile (shaders/trace.wgsl); 0: one
-    /// workgroup per tile. By default [`TRACE_GROUPS_PER_THREAD`] per
+    /// How many workgroups the trace pass and the accumulate pass's two
+    /// kernels (not the marks) made from now on dispatch, each looping
+    /// over every n-th tile (shaders/trace.wgsl, shaders/accumulate.wgsl);
+    /// 0: one workgroup per tile (for the accumulate kernels: per tile of
+    /// their list, through the indirect dispatches). By default [`LOOPING_GROUPS_PER_THREAD`] per
     /// thread on a CPU adapter, where starting a workgroup costs the
     /// driver, and 0 on a GPU, which needs the workgroups to fill it. Any
     /// count gives the same images (for tests and benchmarks).
-    pub fn set_trace_groups(&self, groups: u32) {
-        self.trace_groups.store(groups, Ordering::Relaxed);
+    pub fn set_looping_groups(&self, groups: u32) {
+        self.looping_groups.store(groups, Ordering::Relaxed);
     }
 
-    pub fn trace_groups(&self) -> u32 {
-        self.trace_groups.load(Ordering::Relaxed)
+    pub fn looping_groups(&self) -> u32 {
+        self.looping_groups.load(Ordering::Relaxed)
     }
 
     /// Whether pipelines built from now on give the triangle test's edge

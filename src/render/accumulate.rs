@@ -156,6 +156,9 @@ pub struct AccumulatePass {
     ran: Vec<Kernels>,
     /// The most workgroups a dispatch may count in x.
     max_workgroups: u32,
+    /// Workgroups each kernel dispatches, looping over its tiles (0: one
+    /// per tile; [`Gpu::set_looping_groups`] when the pass was made).
+    looping: u32,
 }
 
 /// The number of accumulate workgroups (tiles of `tile_px`) of a target,
@@ -253,6 +256,7 @@ impl AccumulatePass {
                 written_sources: Vec::new(),
                 ran: Vec::new(),
                 max_workgroups: gpu.device.limits().max_compute_workgroups_per_dimension,
+                looping: gpu.looping_groups(),
             }
         })
     }
@@ -505,7 +509,11 @@ impl AccumulatePass {
         let mut pass = self.begin(encoder, "accumulate pass", timestamp_writes);
         pass.set_pipeline(&self.pipelines[edge][usize::from(traced)]);
         pass.set_bind_group(PASS_GROUP, &groups[edge].bind_group, &[]);
-        if outlines && trace_accumulates && groups[edge].listed {
+        if self.looping > 0 {
+            // A few workgroups, each looping over its share of the tiles
+            // (as the trace pass): the kernels read the lists' counts.
+            pass.dispatch_workgroups(self.looping, 1, 1);
+        } else if outlines && trace_accumulates && groups[edge].listed {
             let dispatch = &groups[edge].outline_dispatch;
             pass.dispatch_workgroups_indirect(dispatch, MAIN_DISPATCH_OFFSET);
         } else {
@@ -513,7 +521,9 @@ impl AccumulatePass {
         }
         if outlines {
             pass.set_pipeline(&self.outline_pipelines[edge][usize::from(traced)]);
-            if groups[edge].listed {
+            if self.looping > 0 {
+                pass.dispatch_workgroups(self.looping, 1, 1);
+            } else if groups[edge].listed {
                 pass.dispatch_workgroups_indirect(&groups[edge].outline_dispatch, 0);
             } else {
                 pass.dispatch_workgroups(tiles_x, tiles_y, 1);

@@ -86,7 +86,7 @@ pub struct TracePass {
     driver: Option<DriverVariant>,
     driver_group: Option<wgpu::BindGroup>,
     /// Workgroups a dispatch looping over the tiles has (0: one per
-    /// tile; [`Gpu::set_trace_groups`] when the pass was made).
+    /// tile; [`Gpu::set_looping_groups`] when the pass was made).
     groups: u32,
 }
 
@@ -351,7 +351,7 @@ impl TracePass {
                 written_tiles: Vec::new(),
                 driver: None,
                 driver_group: None,
-                groups: gpu.trace_groups(),
+                groups: gpu.looping_groups(),
             }
         })
     }
