@@ -318,7 +318,8 @@ fn outlined(
     let total = tiles_x * ((frame.size_px.y + ACCUMULATE_TILE - 1u) / ACCUMULATE_TILE);
     let count = select(total, outline_dispatch[0], listed);
     // Workgroup w of n takes the w-th, (w + n)-th, ... of its tiles, as in
-    // `main`.
+    // `main` (where the driver keeps barriers in a loop right: lavapipe
+    // before Mesa 25 gets one workgroup per tile, gpu::Gpu::barriers_loop).
     for (var k = wg.y * groups.x + wg.x; k < count; k += groups.x * groups.y) {
         var tile = k;
         if listed {

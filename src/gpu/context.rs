@@ -81,6 +81,18 @@ fn selection_pays(info: &wgpu::AdapterInfo) -> bool {
         && mesa_major(&info.driver_info).is_some_and(|major| major >= 25)
 }
 
+/// Whether kernels may loop over their tiles around workgroup barriers
+/// ([`Gpu::barriers_loop`]). Lavapipe from Mesa 22.3 drew wrong outlines
+/// with the accumulate pass's `outlined` looping that way in 16-invocation
+/// workgroups (two SIMD programs meeting at each barrier; 5 px outlines in
+/// tests/shading.rs, thirty-first session), and right ones with one
+/// workgroup per tile; Mesa 25 draws them right either way. Other CPU
+/// drivers were not tried, so they keep one workgroup per tile.
+fn barriers_loop(info: &wgpu::AdapterInfo) -> bool {
+    info.device_type != wgpu::DeviceType::Cpu
+        || mesa_major(&info.driver_info).is_some_and(|major| major >= 25)
+}
+
 /// The major version in a Mesa driver string ("Mesa 25.0.7-2~bpo12+1
 /// (LLVM 15.0.6)": 25).
 fn mesa_major(driver_info: &str) -> Option<u32> {
@@ -192,6 +204,8 @@ pub struct Gpu {
     /// Whether pipelines built from now on give the triangle test's edge
     /// values a tolerance (`set_edge_tolerance`).
     edge_tolerance: AtomicBool,
+    /// Whether kernels may loop over tiles around barriers (`barriers_loop`).
+    barriers_loop: bool,
     /// Whether passes made from now on use the packet walk
     /// (`set_packet_walk`; never where `summary.packet_walk` says it
     /// cannot run).
@@ -290,6 +304,7 @@ impl Gpu {
         let summary = AdapterSummary::from_adapter(&adapter);
         let edge_tolerance = adapter.get_info().device_type != wgpu::DeviceType::Cpu;
         let select_tables = selection_pays(&adapter.get_info());
+        let barriers_loop = barriers_loop(&adapter.get_info());
         // Ray queries serve the driver acceleration path (render/driver_accel.rs);
         // they are requested wherever offered, so either path can be chosen
         // later on one device. They need the experimental-features token and
@@ -359,6 +374,7 @@ impl Gpu {
             primary_tiles: AtomicBool::new(true),
             looping_groups,
             edge_tolerance: AtomicBool::new(edge_tolerance),
+            barriers_loop,
             packet_walk,
         })
     }
@@ -452,6 +468,13 @@ impl Gpu {
 
     pub fn looping_groups(&self) -> u32 {
         self.looping_groups.load(Ordering::Relaxed)
+    }
+
+    /// Whether a kernel whose workgroups meet at barriers may loop over
+    /// tiles on this adapter (the accumulate pass's `outlined`; not on
+    /// lavapipe before Mesa 25, where it drew wrong outlines so).
+    pub fn barriers_loop(&self) -> bool {
+        self.barriers_loop
     }
 
     /// Whether pipelines built from now on give the triangle test's edge

@@ -156,9 +156,12 @@ pub struct AccumulatePass {
     ran: Vec<Kernels>,
     /// The most workgroups a dispatch may count in x.
     max_workgroups: u32,
-    /// Workgroups each kernel dispatches, looping over its tiles (0: one
-    /// per tile; [`Gpu::set_looping_groups`] when the pass was made).
+    /// Workgroups `main` dispatches, looping over its tiles (0: one per
+    /// tile; [`Gpu::set_looping_groups`] when the pass was made).
     looping: u32,
+    /// The same for `outlined`, whose loop holds barriers: 0 where
+    /// [`Gpu::barriers_loop`] says the driver gets that wrong.
+    outlined_looping: u32,
 }
 
 /// The number of accumulate workgroups (tiles of `tile_px`) of a target,
@@ -257,6 +260,11 @@ impl AccumulatePass {
                 ran: Vec::new(),
                 max_workgroups: gpu.device.limits().max_compute_workgroups_per_dimension,
                 looping: gpu.looping_groups(),
+                outlined_looping: if gpu.barriers_loop() {
+                    gpu.looping_groups()
+                } else {
+                    0
+                },
             }
         })
     }
@@ -521,8 +529,8 @@ impl AccumulatePass {
         }
         if outlines {
             pass.set_pipeline(&self.outline_pipelines[edge][usize::from(traced)]);
-            if self.looping > 0 {
-                pass.dispatch_workgroups(self.looping, 1, 1);
+            if self.outlined_looping > 0 {
+                pass.dispatch_workgroups(self.outlined_looping, 1, 1);
             } else if groups[edge].listed {
                 pass.dispatch_workgroups_indirect(&groups[edge].outline_dispatch, 0);
             } else {
