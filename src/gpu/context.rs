@@ -89,8 +89,12 @@ fn selection_pays(info: &wgpu::AdapterInfo) -> bool {
 /// workgroup per tile; Mesa 25 draws them right either way. Other CPU
 /// drivers were not tried, so they keep one workgroup per tile.
 fn barriers_loop(info: &wgpu::AdapterInfo) -> bool {
-    info.device_type != wgpu::DeviceType::Cpu
-        || mesa_major(&info.driver_info).is_some_and(|major| major >= 25)
+    barriers_loop_on(info.device_type == wgpu::DeviceType::Cpu, &info.driver_info)
+}
+
+/// [`barriers_loop`] for a CPU adapter or not, by its driver string.
+fn barriers_loop_on(cpu: bool, driver_info: &str) -> bool {
+    !cpu || mesa_major(driver_info).is_some_and(|major| major >= 25)
 }
 
 /// The major version in a Mesa driver string ("Mesa 25.0.7-2~bpo12+1
@@ -582,7 +586,7 @@ fn new_instance() -> wgpu::Instance {
 
 #[cfg(test)]
 mod tests {
-    use super::mesa_major;
+    use super::{barriers_loop_on, mesa_major};
 
     /// The major version comes from lavapipe's driver string, and a
     /// string without "Mesa " gives none (selection stays off).
@@ -592,5 +596,19 @@ mod tests {
         assert_eq!(mesa_major("Mesa 22.3.6 (LLVM 15.0.6)"), Some(22));
         assert_eq!(mesa_major("570.124.06"), None);
         assert_eq!(mesa_major("Mesa x"), None);
+    }
+
+    /// Kernels loop around barriers on GPUs and on lavapipe from Mesa 25;
+    /// Mesa 22.3's lavapipe and CPU drivers that are not Mesa keep one
+    /// workgroup per tile.
+    #[test]
+    fn barriers_loop_from_mesa_25_and_on_gpus() {
+        assert!(barriers_loop_on(
+            true,
+            "Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"
+        ));
+        assert!(!barriers_loop_on(true, "Mesa 22.3.6 (LLVM 15.0.6)"));
+        assert!(!barriers_loop_on(true, "SwiftShader driver"));
+        assert!(barriers_loop_on(false, "570.124.06"));
     }
 }
