@@ -64,8 +64,8 @@ pub struct AdapterSummary {
     /// CPU adapter (lavapipe) `LP_NUM_THREADS` where set, else the CPUs
     /// this process may run on, at most 32 (Mesa's `LP_MAX_THREADS`); 1 on
     /// a GPU. The trace and accumulate passes start
-    /// [`LOOPING_GROUPS_PER_THREAD`] workgroups per thread on a CPU
-    /// adapter ([`Gpu::set_looping_groups`]).
+    /// [`LOOPING_GROUPS_PER_THREAD`] workgroups per thread on lavapipe
+    /// from Mesa 25 ([`Gpu::set_looping_groups`]).
     pub dispatch_threads: u32,
 }
 
@@ -79,6 +79,22 @@ pub struct AdapterSummary {
 fn selection_pays(info: &wgpu::AdapterInfo) -> bool {
     info.device_type == wgpu::DeviceType::Cpu
         && mesa_major(&info.driver_info).is_some_and(|major| major >= 25)
+}
+
+/// Whether the trace and accumulate kernels loop over tiles in a few
+/// workgroups by default ([`Gpu::set_looping_groups`]): on lavapipe from
+/// Mesa 25. Mesa 22.3's lavapipe silently stops an invocation's loops
+/// after about 65,535 iterations in all, which one invocation looping over
+/// every other tile of a 1280 x 720 image passes (the deep scene's rays
+/// came back as misses, tests/raytrace.rs, thirty-first session), so there
+/// each workgroup keeps one tile; a GPU needs the workgroups to fill it.
+fn looping_pays(info: &wgpu::AdapterInfo) -> bool {
+    looping_pays_on(info.device_type == wgpu::DeviceType::Cpu, &info.driver_info)
+}
+
+/// [`looping_pays`] for a CPU adapter or not, by its driver string.
+fn looping_pays_on(cpu: bool, driver_info: &str) -> bool {
+    cpu && mesa_major(driver_info).is_some_and(|major| major >= 25)
 }
 
 /// Whether kernels may loop over their tiles around workgroup barriers
@@ -104,8 +120,9 @@ fn mesa_major(driver_info: &str) -> Option<u32> {
     rest.split('.').next()?.parse().ok()
 }
 
-/// Workgroups of the trace and accumulate kernels per driver thread on a
-/// CPU adapter, each looping over tiles ([`Gpu::set_looping_groups`]).
+/// Workgroups of the trace and accumulate kernels per driver thread on
+/// lavapipe from Mesa 25, each looping over tiles ([`looping_pays`],
+/// [`Gpu::set_looping_groups`]).
 pub const LOOPING_GROUPS_PER_THREAD: u32 = 1;
 
 /// [`AdapterSummary::dispatch_threads`] for a CPU adapter.
@@ -356,12 +373,11 @@ impl Gpu {
         }));
         log::info!("adapter: {summary}");
         let packet_walk = AtomicBool::new(summary.packet_walk);
-        let looping_groups =
-            AtomicU32::new(if adapter.get_info().device_type == wgpu::DeviceType::Cpu {
-                summary.dispatch_threads * LOOPING_GROUPS_PER_THREAD
-            } else {
-                0
-            });
+        let looping_groups = AtomicU32::new(if looping_pays(&adapter.get_info()) {
+            summary.dispatch_threads * LOOPING_GROUPS_PER_THREAD
+        } else {
+            0
+        });
         Ok(Gpu {
             instance,
             adapter,
@@ -462,10 +478,12 @@ impl Gpu {
     /// kernels (not the marks) made from now on dispatch, each looping
     /// over every n-th tile (shaders/trace.wgsl, shaders/accumulate.wgsl);
     /// 0: one workgroup per tile (for the accumulate kernels: per tile of
-    /// their list, through the indirect dispatches). By default [`LOOPING_GROUPS_PER_THREAD`] per
-    /// thread on a CPU adapter, where starting a workgroup costs the
-    /// driver, and 0 on a GPU, which needs the workgroups to fill it. Any
-    /// count gives the same images (for tests and benchmarks).
+    /// their list, through the indirect dispatches). By default
+    /// [`LOOPING_GROUPS_PER_THREAD`] per thread on lavapipe from Mesa 25,
+    /// where starting a workgroup costs the driver, and 0 elsewhere: a GPU
+    /// needs the workgroups to fill it, and Mesa 22.3 cuts long loops
+    /// short (`looping_pays`). Any count gives the same images where the
+    /// driver runs it right (for tests and benchmarks).
     pub fn set_looping_groups(&self, groups: u32) {
         self.looping_groups.store(groups, Ordering::Relaxed);
     }
@@ -586,7 +604,7 @@ fn new_instance() -> wgpu::Instance {
 
 #[cfg(test)]
 mod tests {
-    use super::{barriers_loop_on, mesa_major};
+    use super::{barriers_loop_on, looping_pays_on, mesa_major};
 
     /// The major version comes from lavapipe's driver string, and a
     /// string without "Mesa " gives none (selection stays off).
@@ -596,6 +614,17 @@ mod tests {
         assert_eq!(mesa_major("Mesa 22.3.6 (LLVM 15.0.6)"), Some(22));
         assert_eq!(mesa_major("570.124.06"), None);
         assert_eq!(mesa_major("Mesa x"), None);
+    }
+
+    /// Kernels loop over tiles by default on lavapipe from Mesa 25 alone:
+    /// Mesa 22.3's silently cuts long loops short, other CPU drivers were
+    /// not tried, and GPUs need a workgroup per tile to fill them.
+    #[test]
+    fn looping_pays_on_lavapipe_from_mesa_25() {
+        assert!(looping_pays_on(true, "Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"));
+        assert!(!looping_pays_on(true, "Mesa 22.3.6 (LLVM 15.0.6)"));
+        assert!(!looping_pays_on(true, "SwiftShader driver"));
+        assert!(!looping_pays_on(false, "Mesa 25.0.7"));
     }
 
     /// Kernels loop around barriers on GPUs and on lavapipe from Mesa 25;
