@@ -889,7 +889,6 @@ fn looping_workgroups_change_no_sum() {
             );
         }
     }
-    gpu.set_outline_tile_list(true);
 }
 
 /// The accumulate pass searches for outlines in a kernel of its own, over

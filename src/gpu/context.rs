@@ -77,8 +77,19 @@ pub struct AdapterSummary {
 /// session). Versions in between were not measured; GPUs read indexed
 /// tables through their caches.
 fn selection_pays(info: &wgpu::AdapterInfo) -> bool {
-    info.device_type == wgpu::DeviceType::Cpu
-        && mesa_major(&info.driver_info).is_some_and(|major| major >= 25)
+    lavapipe_from_mesa_25(info)
+}
+
+/// Whether this is a CPU adapter whose driver is Mesa 25 or later: where
+/// the table selection, the looping workgroups and loops around barriers
+/// were measured to pay and to run right.
+fn lavapipe_from_mesa_25(info: &wgpu::AdapterInfo) -> bool {
+    is_lavapipe_from_mesa_25(info.device_type == wgpu::DeviceType::Cpu, &info.driver_info)
+}
+
+/// [`lavapipe_from_mesa_25`] for a CPU adapter or not, by its driver string.
+fn is_lavapipe_from_mesa_25(cpu: bool, driver_info: &str) -> bool {
+    cpu && mesa_major(driver_info).is_some_and(|major| major >= 25)
 }
 
 /// Whether the trace and accumulate kernels loop over tiles in a few
@@ -89,12 +100,7 @@ fn selection_pays(info: &wgpu::AdapterInfo) -> bool {
 /// came back as misses, tests/raytrace.rs, thirty-first session), so there
 /// each workgroup keeps one tile; a GPU needs the workgroups to fill it.
 fn looping_pays(info: &wgpu::AdapterInfo) -> bool {
-    looping_pays_on(info.device_type == wgpu::DeviceType::Cpu, &info.driver_info)
-}
-
-/// [`looping_pays`] for a CPU adapter or not, by its driver string.
-fn looping_pays_on(cpu: bool, driver_info: &str) -> bool {
-    cpu && mesa_major(driver_info).is_some_and(|major| major >= 25)
+    lavapipe_from_mesa_25(info)
 }
 
 /// Whether kernels may loop over their tiles around workgroup barriers
@@ -110,7 +116,7 @@ fn barriers_loop(info: &wgpu::AdapterInfo) -> bool {
 
 /// [`barriers_loop`] for a CPU adapter or not, by its driver string.
 fn barriers_loop_on(cpu: bool, driver_info: &str) -> bool {
-    !cpu || mesa_major(driver_info).is_some_and(|major| major >= 25)
+    !cpu || is_lavapipe_from_mesa_25(cpu, driver_info)
 }
 
 /// The major version in a Mesa driver string ("Mesa 25.0.7-2~bpo12+1
@@ -604,7 +610,7 @@ fn new_instance() -> wgpu::Instance {
 
 #[cfg(test)]
 mod tests {
-    use super::{barriers_loop_on, looping_pays_on, mesa_major};
+    use super::{barriers_loop_on, is_lavapipe_from_mesa_25, mesa_major};
 
     /// The major version comes from lavapipe's driver string, and a
     /// string without "Mesa " gives none (selection stays off).
@@ -616,15 +622,21 @@ mod tests {
         assert_eq!(mesa_major("Mesa x"), None);
     }
 
-    /// Kernels loop over tiles by default on lavapipe from Mesa 25 alone:
-    /// Mesa 22.3's silently cuts long loops short, other CPU drivers were
-    /// not tried, and GPUs need a workgroup per tile to fill them.
+    /// The table selection, the looping workgroups and loops around
+    /// barriers are on for lavapipe from Mesa 25 alone among CPU drivers:
+    /// Mesa 22.3's silently cuts long loops short and got the barriers
+    /// wrong, other CPU drivers were not tried. A GPU is not lavapipe
+    /// (it loops around barriers, `barriers_loop`, but needs a workgroup
+    /// per tile to fill it).
     #[test]
-    fn looping_pays_on_lavapipe_from_mesa_25() {
-        assert!(looping_pays_on(true, "Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"));
-        assert!(!looping_pays_on(true, "Mesa 22.3.6 (LLVM 15.0.6)"));
-        assert!(!looping_pays_on(true, "SwiftShader driver"));
-        assert!(!looping_pays_on(false, "Mesa 25.0.7"));
+    fn lavapipe_from_mesa_25_by_kind_and_driver_string() {
+        assert!(is_lavapipe_from_mesa_25(
+            true,
+            "Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"
+        ));
+        assert!(!is_lavapipe_from_mesa_25(true, "Mesa 22.3.6 (LLVM 15.0.6)"));
+        assert!(!is_lavapipe_from_mesa_25(true, "SwiftShader driver"));
+        assert!(!is_lavapipe_from_mesa_25(false, "Mesa 25.0.7"));
     }
 
     /// Kernels loop around barriers on GPUs and on lavapipe from Mesa 25;
