@@ -515,6 +515,9 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
     var hit: TraceHit;
     var raster_may_show = true;
     var accumulates = false;
+    // Whether this pixel's normal, depth and id are stored: everywhere
+    // unless the tile's word says no pass reads them this sample.
+    var stores_gbuffer = true;
     if PRIMARY_TILES {
         // The workgroup's tile: every invocation of it takes the same path.
         let tiles = (frame.size_px + vec2<u32>(TRACE_WORKGROUP - 1u)) / TRACE_WORKGROUP;
@@ -523,6 +526,7 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
         let flags = primary_tiles[tiles.x * tiles.y * PRIMARY_TILE_WORDS + tile.y * tiles_x + tile.x];
         raster_may_show = (flags & TILE_MESH_MAY_SHOW) != 0u;
         accumulates = (flags & TILE_TRACE_ACCUMULATES) != 0u;
+        stores_gbuffer = (flags & TILE_GBUFFER_SKIPS) == 0u || frame.gbuffer_only != 0u;
         let listed = primary_tiles[r] != PRIMARY_TILE_WALK;
         if listed {
             hit = trace_listed(r, o, d, hybrid);
@@ -556,6 +560,15 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
         primary_normal = facing_normal(hit, d);
         primary_depth = dot(p - eye, forward);
         primary_id = hit.instance + 1u;
+    }
+    if frame.gbuffer_only != 0u {
+        // Completing the last sample's G-buffer: no shading, no colour.
+        if inside {
+            let k = traced_index(gid.xy, frame.size_px.x);
+            out_normal_depth[k] = vec4<f32>(primary_normal, primary_depth);
+            out_id[k] = primary_id;
+        }
+        return;
     }
 
     // Mirror reflections: each bounce keeps (1 - reflectivity) of its own
@@ -633,6 +646,8 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
     } else {
         out_color[k] = halves;
     }
-    out_normal_depth[k] = vec4<f32>(primary_normal, primary_depth);
-    out_id[k] = primary_id;
+    if stores_gbuffer {
+        out_normal_depth[k] = vec4<f32>(primary_normal, primary_depth);
+        out_id[k] = primary_id;
+    }
 }

@@ -83,7 +83,7 @@ fn twins_match_wgsl_layouts() {
             max_bounces,
             ray_epsilon,
             trace_accumulates,
-            _pad0,
+            gbuffer_only,
             _pad1,
             _pad2,
             _pad3

@@ -828,6 +828,91 @@ fn the_trace_pass_accumulates_the_tiles_no_outline_reaches_with_the_same_sums() 
     }
 }
 
+/// The trace pass does not store the normal, depth and id of the tiles
+/// that no pass of the sample reads (`TILE_GBUFFER_SKIPS`: the trace pass
+/// adds the tile's colour itself, and no tile whose outline marks or
+/// search run lies within the outline radius of it). Those texels keep an
+/// earlier sample's values, so a tile flagged wrongly would show stale
+/// texels to the outline search. Here the stale texels are the worst kind:
+/// the first 3 samples see an outlined sphere filling the image (a source
+/// texel everywhere, outline 3 px, or 5 px for the 16 px accumulate
+/// tiles); then the camera backs away, so the sphere covers the middle
+/// third of the image, and 3 more samples are taken. A background pixel
+/// of a marked tile within 3 px of a stale sphere texel would take the
+/// outline (the search takes any source within its width). The sums must
+/// equal, bit for bit, those of a renderer that made the far camera's
+/// samples alone with the trace pass adding nothing (every texel stored).
+/// The G-buffer read back after them must be whole too (the read-back
+/// first stores what the last sample left: `Renderer::complete_gbuffer`).
+#[test]
+fn unstored_gbuffer_texels_are_never_read() {
+    use celray::gpu::twins::{TILE_GBUFFER_SKIPS, TILE_TRACE_ACCUMULATES, TRACE_WORKGROUP};
+    use celray::scene::Scene;
+    let gpu = gpu();
+    let (w, h) = (164, 92);
+    for outline_px in [3.0, 5.0] {
+        let near = scene(&outlined_sphere(w, h, outline_px));
+        let mut far = near.camera.clone();
+        far.eye = Vec3::new(0.0, 0.0, 15.0);
+        let settings = RenderSettings {
+            width: w,
+            height: h,
+            spp: 3,
+            mode: RenderMode::Raytrace,
+            ..RenderSettings::default()
+        };
+        let mut reused = rendered(&gpu, near.clone(), settings.clone());
+        reused.set_camera(far.clone());
+        reused.render_to_convergence(&gpu, |_, _| {}).unwrap();
+        let words = reused.read_primary_tiles(&gpu).unwrap();
+        let count = (w.div_ceil(TRACE_WORKGROUP) * h.div_ceil(TRACE_WORKGROUP)) as usize;
+        let flags = &words[words.len() - count..];
+        let skipped = flags
+            .iter()
+            .filter(|&&f| f & TILE_GBUFFER_SKIPS != 0)
+            .count();
+        let stored = flags
+            .iter()
+            .filter(|&&f| f & TILE_TRACE_ACCUMULATES == 0)
+            .count();
+        assert!(
+            skipped > 0 && stored > 0,
+            "{outline_px} px: {skipped} of {count} tiles skip, {stored} are the outline's"
+        );
+        gpu.set_trace_accumulates(false);
+        let fresh = rendered(
+            &gpu,
+            Scene {
+                camera: far,
+                ..near
+            },
+            settings,
+        );
+        gpu.set_trace_accumulates(true);
+        let (got, want) = (
+            accumulator_bits(&gpu, &reused),
+            accumulator_bits(&gpu, &fresh),
+        );
+        let differ = (0..got.len()).filter(|&i| got[i] != want[i]).count();
+        assert_eq!(differ, 0, "{outline_px} px: {differ} pixels sum otherwise");
+        let (ids, want_ids) = (
+            reused.read_ids(&gpu).unwrap(),
+            fresh.read_ids(&gpu).unwrap(),
+        );
+        let (nd, want_nd) = (
+            reused.read_normal_depth(&gpu).unwrap(),
+            fresh.read_normal_depth(&gpu).unwrap(),
+        );
+        let differ = (0..ids.len())
+            .filter(|&i| ids[i] != want_ids[i] || (ids[i] != 0 && nd[i] != want_nd[i]))
+            .count();
+        assert_eq!(
+            differ, 0,
+            "{outline_px} px: {differ} G-buffer texels differ"
+        );
+    }
+}
+
 /// On a CPU adapter the trace pass and the accumulate pass's two kernels
 /// dispatch a few workgroups, each looping over every n-th tile (of the
 /// image, or of the marks' lists: `Gpu::set_looping_groups`), instead of

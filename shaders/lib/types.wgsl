@@ -36,7 +36,10 @@ struct FrameUniforms {
     // accumulator itself, so the outline marks flag them
     // OUTLINE_MARK_TRACED and the accumulate pass leaves them alone.
     trace_accumulates: u32,
-    _pad0: u32,
+    // 1 for a dispatch that only completes the last sample's G-buffer
+    // (src/render/mod.rs, Renderer::complete_gbuffer): every tile stores
+    // its normal, depth and id, and nothing is shaded or accumulated.
+    gbuffer_only: u32,
     _pad1: u32,
     _pad2: u32,
     _pad3: u32,

@@ -82,6 +82,12 @@ pub const TILE_MESH_MAY_SHOW: u32 = 1;
 /// Bit of a tile's word after the records: no outline can reach the tile,
 /// so the trace pass adds its pixels' colour to the accumulator itself.
 pub const TILE_TRACE_ACCUMULATES: u32 = 2;
+/// Bit of a tile's word after the records: no pass of this sample reads the
+/// tile's traced normal, depth and id (it accumulates, and no tile whose
+/// outline search or marks read texels within the outline radius of it
+/// does not), so the trace pass does not store them. Set only where no
+/// reproject pass reads the sample's G-buffer in full.
+pub const TILE_GBUFFER_SKIPS: u32 = 4;
 
 /// Which shadow rays of one light can meet something at all
 /// ([`crate::accel::shadow_cull`]): the trace kernel casts a ray only where

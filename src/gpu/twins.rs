@@ -69,7 +69,10 @@ pub struct FrameUniforms {
     /// 1 where the trace pass adds the colour of the tiles its tile words
     /// flag [`TILE_TRACE_ACCUMULATES`] to the accumulator itself.
     pub trace_accumulates: u32,
-    pub _pad0: u32,
+    /// 1 for a trace dispatch that only completes the last sample's
+    /// G-buffer (`Renderer::complete_gbuffer`): every tile stores its
+    /// normal, depth and id, and nothing is shaded or accumulated.
+    pub gbuffer_only: u32,
     pub _pad1: u32,
     pub _pad2: u32,
     pub _pad3: u32,

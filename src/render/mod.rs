@@ -35,7 +35,8 @@ use wgpu::util::DeviceExt;
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::twins::{
     FrameUniforms, ReprojectUniforms, OUTLINE_MARK_SEARCH, SHAPE_MESH, TEMPORAL_REJECT_CLIP,
-    TEMPORAL_REJECT_NONE, TILE_MESH_MAY_SHOW, TILE_TRACE_ACCUMULATES, TRACE_WORKGROUP,
+    TEMPORAL_REJECT_NONE, TILE_GBUFFER_SKIPS, TILE_MESH_MAY_SHOW, TILE_TRACE_ACCUMULATES,
+    TRACE_WORKGROUP,
 };
 use crate::gpu::{readback, Gpu, GpuError};
 use crate::sampling::{Sample, SampleSchedule};
@@ -74,6 +75,53 @@ fn max_outline_px(scene: &Scene) -> f32 {
         .map(|m| m.outline_width_px)
         .fold(0.0f32, f32::max)
         .min(crate::gpu::twins::MAX_OUTLINE_RADIUS as f32)
+}
+
+/// Sets `TILE_GBUFFER_SKIPS` in the flag words that follow the records in
+/// `tiles` (the trace tiles of an image of `settings`' size) where no pass
+/// of the sample reads the tile's traced normal, depth and id: the trace
+/// pass accumulates the tile (`TILE_TRACE_ACCUMULATES`), and no accumulate
+/// tile of `tile_px` whose outline marks and search run (its `sources`
+/// word is not 0; none without outlines) lies within the outline radius of
+/// it, as far as those read around their own tile
+/// (shaders/outline_tiles.wgsl, shaders/accumulate.wgsl). Returns whether
+/// some tile skips.
+fn flag_gbuffer_skips(
+    tiles: &mut [u32],
+    scene: &Scene,
+    settings: &RenderSettings,
+    sources: Option<&[u32]>,
+    tile_px: u32,
+) -> bool {
+    let size = (settings.width, settings.height);
+    let trace_x = size.0.div_ceil(TRACE_WORKGROUP);
+    let count = (trace_x * size.1.div_ceil(TRACE_WORKGROUP)) as usize;
+    let flags = tiles.len() - count;
+    let grid = (size.0.div_ceil(tile_px), size.1.div_ceil(tile_px));
+    let r = max_outline_px(scene).floor() as u32;
+    // Whether an accumulate tile that reads the G-buffer lies within r of
+    // the trace tile at pixel (x, y).
+    let read_near = |s: &[u32], x: u32, y: u32| {
+        let lo = (x.saturating_sub(r) / tile_px, y.saturating_sub(r) / tile_px);
+        let edge = TRACE_WORKGROUP - 1 + r;
+        let hi = (
+            ((x + edge) / tile_px).min(grid.0 - 1),
+            ((y + edge) / tile_px).min(grid.1 - 1),
+        );
+        (lo.1..=hi.1).any(|ty| (lo.0..=hi.0).any(|tx| s[(ty * grid.0 + tx) as usize] != 0))
+    };
+    let mut any = false;
+    for (t, word) in (0u32..).zip(tiles[flags..].iter_mut()) {
+        let (x, y) = (
+            (t % trace_x) * TRACE_WORKGROUP,
+            (t / trace_x) * TRACE_WORKGROUP,
+        );
+        if *word & TILE_TRACE_ACCUMULATES != 0 && !sources.is_some_and(|s| read_near(s, x, y)) {
+            *word |= TILE_GBUFFER_SKIPS;
+            any = true;
+        }
+    }
+    any
 }
 
 /// The pipelines a renderer draws with, by their cache keys: the raster
@@ -189,6 +237,11 @@ pub struct Renderer {
     /// reaches to the accumulator itself, where it reads primary tiles
     /// ([`Gpu::set_trace_accumulates`] when the renderer was made).
     trace_may_accumulate: bool,
+    /// The last sample's frame uniforms, where its trace pass left the
+    /// normal, depth and id of some tiles unstored (`TILE_GBUFFER_SKIPS`:
+    /// no pass of that sample read them); [`Renderer::complete_gbuffer`]
+    /// stores them before anything reads the G-buffer in full.
+    partial_gbuffer: Option<FrameUniforms>,
 }
 
 /// The driver's structures for `scene` where `settings.accel` asks for them
@@ -260,6 +313,7 @@ impl Renderer {
             temporal: TemporalState::default(),
             tile_px: None,
             trace_may_accumulate: gpu.trace_accumulates(),
+            partial_gbuffer: None,
         };
         renderer.bind(gpu)?;
         Ok(renderer)
@@ -382,6 +436,7 @@ impl Renderer {
         self.samples = 0;
         self.temporal.last_view = None;
         self.temporal.moved = false;
+        self.partial_gbuffer = None;
     }
 
     /// Replaces the scene (uploading it again) and restarts accumulation.
@@ -698,7 +753,7 @@ impl Renderer {
             // Set by render_sample, which knows whether the trace pass
             // reads its tiles.
             trace_accumulates: 0,
-            _pad0: 0,
+            gbuffer_only: 0,
             _pad1: 0,
             _pad2: 0,
             _pad3: 0,
@@ -724,20 +779,26 @@ impl Renderer {
             mode,
             sources.as_deref(),
             kernels.tile_px,
+            true,
         )
+        .0
     }
 
     /// The primary-ray tiles of the sample whose projection is
     /// `clip_from_world` ([`Renderer::primary_tiles`]), given that
     /// sample's outline source tiles of `tile_px` on a side (`None`: no
-    /// outline reaches other pixels).
+    /// outline reaches other pixels). On a `still` frame (no reproject pass
+    /// reads the whole G-buffer) the tiles no pass reads skip their
+    /// G-buffer stores ([`flag_gbuffer_skips`]); also returns whether some
+    /// tile does.
     fn tiles_seen_by(
         &self,
         clip_from_world: glam::Mat4,
         mode: RenderMode,
         sources: Option<&[u32]>,
         tile_px: u32,
-    ) -> Vec<u32> {
+        still: bool,
+    ) -> (Vec<u32>, bool) {
         let accel = &self.buffers.accel;
         let hybrid = mode == RenderMode::Hybrid;
         let mesh = |i: usize| accel.shapes[accel.instances[i].2 as usize].kind == SHAPE_MESH;
@@ -764,7 +825,7 @@ impl Renderer {
             tiles.resize(tiles.len() + count, 0);
         }
         if !self.trace_may_accumulate {
-            return tiles;
+            return (tiles, false);
         }
         // An accumulate tile holds whole trace tiles (8 or 16 px against 8).
         debug_assert!(tile_px.is_multiple_of(TRACE_WORKGROUP));
@@ -778,7 +839,9 @@ impl Renderer {
                 *word |= TILE_TRACE_ACCUMULATES;
             }
         }
-        tiles
+        let skips =
+            still && flag_gbuffer_skips(&mut tiles, &self.scene, &self.settings, sources, tile_px);
+        (tiles, skips)
     }
 
     /// Per accumulate tile of `tile_px`, whether an instance whose outline
@@ -815,6 +878,11 @@ impl Renderer {
         // A moving frame (temporal on, camera changed since the last frame)
         // takes the next index of the sample schedule, so jitter, lens and
         // shutter time keep converging through the history.
+        if self.reproject.is_some() && self.temporal.moved {
+            // A moving frame: its reproject pass's history is the last
+            // sample's G-buffer, every pixel of it.
+            self.complete_gbuffer(gpu);
+        }
         let moving = match (&self.reproject, self.temporal.last_view) {
             (Some(pass), Some(prev)) if self.temporal.moved => Some((pass, prev)),
             _ => None,
@@ -839,11 +907,17 @@ impl Renderer {
         // outlines): the accumulate pass would only copy it there.
         let reads_tiles = mode != RenderMode::Raster && self.trace.reads_tiles();
         let trace_accumulates = reads_tiles && self.trace_may_accumulate;
+        let mut skips = false;
         if reads_tiles {
-            let tiles = self.tiles_seen_by(clip_from_world, mode, sources.as_deref(), tile_px);
+            // A moving frame's reproject pass reads the whole G-buffer.
+            let still = moving.is_none();
+            let tiles;
+            (tiles, skips) =
+                self.tiles_seen_by(clip_from_world, mode, sources.as_deref(), tile_px, still);
             self.trace.write_tiles(gpu, tiles);
         }
         uniforms.trace_accumulates = u32::from(trace_accumulates);
+        self.partial_gbuffer = skips.then_some(uniforms);
         if let Some(sources) = sources {
             self.accumulate.write_source_tiles(gpu, sources);
         }
@@ -1198,6 +1272,34 @@ impl Renderer {
         }
     }
 
+    /// Stores the normal, depth and id that the last sample's trace pass
+    /// left unstored (`TILE_GBUFFER_SKIPS`), for a reader of the whole
+    /// G-buffer (a moving frame's reproject pass, the read-backs): the
+    /// pass again, over the same tiles with the same uniforms but
+    /// `gbuffer_only`, which stores every pixel's primary hit and shades
+    /// and adds nothing. Submitted at once, before the next sample writes
+    /// its uniforms and tiles.
+    fn complete_gbuffer(&self, gpu: &Gpu) {
+        let Some(uniforms) = self.partial_gbuffer else {
+            return;
+        };
+        let only = FrameUniforms {
+            gbuffer_only: 1,
+            ..uniforms
+        };
+        gpu.queue
+            .write_buffer(&self.frame, 0, bytemuck::bytes_of(&only));
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("G-buffer completion"),
+            });
+        self.trace.encode(&mut encoder, &self.targets, None);
+        gpu.queue.submit([encoder.finish()]);
+        gpu.queue
+            .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
+    }
+
     /// The normal + depth and id textures of the G-buffer the accumulate
     /// pass read in the last sample: in hybrid and raytrace mode the trace
     /// pass's buffers, first copied into the traced textures (the samples
@@ -1207,6 +1309,7 @@ impl Renderer {
             let g = &self.targets.raster;
             return (&g.normal_depth, &g.id);
         }
+        self.complete_gbuffer(gpu);
         let t = &self.targets.traced;
         let mut encoder = gpu
             .device
