@@ -835,11 +835,14 @@ fn the_trace_pass_accumulates_the_tiles_no_outline_reaches_with_the_same_sums() 
 /// earlier sample's values, so a tile flagged wrongly would show stale
 /// texels to the outline search. Here the stale texels are the worst kind:
 /// the first 3 samples see an outlined sphere filling the image (a source
-/// texel everywhere, outline 3 px, or 5 px for the 16 px accumulate
-/// tiles); then the camera backs away, so the sphere covers the middle
-/// third of the image, and 3 more samples are taken. A background pixel
-/// of a marked tile within 3 px of a stale sphere texel would take the
-/// outline (the search takes any source within its width). The sums must
+/// texel across the middle two thirds of the image's width, outline
+/// 1.5 px, 3 px, or 5 px for the 16 px accumulate tiles); then the camera
+/// backs away, so the sphere covers the middle third, and 3 more samples
+/// are taken. A background pixel of a marked tile within the outline's
+/// width of a stale sphere texel would take the outline (the search takes
+/// any source within its width). At 1.5 px (radius 1) the halo is one
+/// texel, so a flagging one texel short leaves out the tiles left of and
+/// above each read tile. The sums must
 /// equal, bit for bit, those of a renderer that made the far camera's
 /// samples alone with the trace pass adding nothing (every texel stored).
 /// The G-buffer read back after them must be whole too (the read-back
@@ -850,7 +853,7 @@ fn unstored_gbuffer_texels_are_never_read() {
     use celray::scene::Scene;
     let gpu = gpu();
     let (w, h) = (164, 92);
-    for outline_px in [3.0, 5.0] {
+    for outline_px in [1.5, 3.0, 5.0] {
         let near = scene(&outlined_sphere(w, h, outline_px));
         let mut far = near.camera.clone();
         far.eye = Vec3::new(0.0, 0.0, 15.0);

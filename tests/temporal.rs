@@ -470,3 +470,67 @@ fn stillness_restarts_exact_accumulation() {
     }
     eprintln!("FLIP vs 256 spp after k still samples:{line}");
 }
+
+/// Still samples leave the G-buffer's normal, depth and id unstored where
+/// no outline pass reads them (`TILE_GBUFFER_SKIPS`: in the default scene,
+/// most of the floor), and the first moving frame first completes the
+/// last still sample's G-buffer (`Renderer::complete_gbuffer`), which the
+/// reprojection takes as its history and rejects against: a history id of
+/// 0 (never stored) under the floor would reject the floor's history. So
+/// 3 still samples and then 2 moving frames must sum, bit for bit, as
+/// those of a renderer that stores every texel
+/// (`Gpu::set_trace_accumulates(false)` leaves no tile unstored), after
+/// each frame.
+#[test]
+fn the_first_moving_frame_reprojects_against_the_whole_gbuffer() {
+    use celray::gpu::twins::{TILE_GBUFFER_SKIPS, TRACE_WORKGROUP};
+    let gpu = common::gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let scene = Scene::load(&dir.join("default.ron")).unwrap();
+    let s = RenderSettings {
+        width: 164,
+        height: 92,
+        spp: 64,
+        mode: RenderMode::Hybrid,
+        temporal: Temporal::Reproject,
+        ..RenderSettings::default()
+    };
+    let frames = |stores_all: bool| {
+        gpu.set_trace_accumulates(!stores_all);
+        let mut r = Renderer::new(&gpu, scene.clone(), s.clone()).unwrap();
+        gpu.set_trace_accumulates(true);
+        let mut sums = Vec::new();
+        for f in 0..5 {
+            if f >= 3 {
+                let mut cam = scene.camera.clone();
+                cam.eye += Vec3::new(0.05 * (f - 2) as f32, 0.02, 0.0);
+                r.set_camera(cam);
+            }
+            r.render_sample(&gpu).unwrap();
+            if f == 2 && !stores_all {
+                // The still samples did leave tiles unstored.
+                let words = r.read_primary_tiles(&gpu).unwrap();
+                let tiles = (s.width.div_ceil(TRACE_WORKGROUP) * s.height.div_ceil(TRACE_WORKGROUP))
+                    as usize;
+                let skipped = (words[words.len() - tiles..].iter())
+                    .filter(|&&w| w & TILE_GBUFFER_SKIPS != 0)
+                    .count();
+                assert!(
+                    skipped > tiles / 4,
+                    "{skipped} of {tiles} tiles skip their stores"
+                );
+            }
+            let bits: Vec<[u32; 4]> = (r.read_accumulator(&gpu).unwrap().iter())
+                .map(|a| a.map(f32::to_bits))
+                .collect();
+            sums.push(bits);
+        }
+        assert!(r.last_frame_moved(), "the last frame did not reproject");
+        sums
+    };
+    let (skipping, storing) = (frames(false), frames(true));
+    for (f, (a, b)) in skipping.iter().zip(&storing).enumerate() {
+        let differ = (0..a.len()).filter(|&i| a[i] != b[i]).count();
+        assert_eq!(differ, 0, "frame {f}: {differ} pixels sum otherwise");
+    }
+}

@@ -84,9 +84,9 @@ pub const TILE_MESH_MAY_SHOW: u32 = 1;
 pub const TILE_TRACE_ACCUMULATES: u32 = 2;
 /// Bit of a tile's word after the records: no pass of this sample reads the
 /// tile's traced normal, depth and id (it accumulates, and no tile whose
-/// outline search or marks read texels within the outline radius of it
-/// does not), so the trace pass does not store them. Set only where no
-/// reproject pass reads the sample's G-buffer in full.
+/// outline marks or search run lies within the outline radius of it), so
+/// the trace pass does not store them. Never set on a moving frame, whose
+/// reproject pass reads the whole G-buffer.
 pub const TILE_GBUFFER_SKIPS: u32 = 4;
 
 /// Which shadow rays of one light can meet something at all

@@ -441,6 +441,9 @@ impl Renderer {
 
     /// Replaces the scene (uploading it again) and restarts accumulation.
     pub fn set_scene(&mut self, gpu: &Gpu, scene: Scene) -> Result<(), GpuError> {
+        // Even where a step below fails: the last sample's G-buffer is
+        // not completed against another scene.
+        self.partial_gbuffer = None;
         self.buffers = SceneBuffers::upload(gpu, &scene)?;
         (self.driver, self.accel_notice) =
             choose_driver(gpu, &scene, &self.buffers, &self.settings);
@@ -455,6 +458,7 @@ impl Renderer {
     /// (same shapes, instances and counts), those are written in place;
     /// otherwise everything is uploaded again as in [`Renderer::set_scene`].
     pub fn update_scene(&mut self, gpu: &Gpu, scene: Scene) -> Result<(), GpuError> {
+        self.partial_gbuffer = None;
         if !self.edits_in_place(&scene) {
             return self.set_scene(gpu, scene);
         }
@@ -613,6 +617,7 @@ impl Renderer {
 
     /// Applies new settings (new targets if the size changed) and restarts.
     pub fn set_settings(&mut self, gpu: &Gpu, settings: RenderSettings) -> Result<(), GpuError> {
+        self.partial_gbuffer = None;
         if (settings.width, settings.height) != (self.targets.width, self.targets.height) {
             self.targets = Targets::new(gpu, settings.width, settings.height)?;
         }
@@ -767,7 +772,8 @@ impl Renderer {
     /// show (never in raytrace mode, where it is not read), and
     /// `TILE_TRACE_ACCUMULATES` where no outline can reach the tile (every
     /// tile without outlines 1 px or wider), whose pixels the trace pass
-    /// adds to the accumulator itself.
+    /// adds to the accumulator itself, and `TILE_GBUFFER_SKIPS` as on a
+    /// still frame (a moving frame has none).
     pub fn primary_tiles(&self, k: u32, mode: RenderMode) -> Vec<u32> {
         let camera = self.camera_for(&self.sample_schedule().sample(k));
         let kernels = self.accumulate_kernels(&self.scene, &self.settings);
@@ -1204,8 +1210,9 @@ impl Renderer {
     }
 
     /// The G-buffer's id target: 0 for background, else GPU instance + 1
-    /// (see [`SceneBuffers::instance_order`]). For tests (picking is
-    /// [`Renderer::pick`], on the CPU).
+    /// (see [`SceneBuffers::instance_order`]), of the last sample (after a
+    /// change, the texels that sample left unstored hold older values until
+    /// the next one). For tests (picking is [`Renderer::pick`], on the CPU).
     pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
         let bytes = readback::read_texture(gpu, self.gbuffer(gpu).1, 4)?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
