@@ -524,9 +524,17 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
         let tiles_x = tiles.x;
         let r = (tile.y * tiles_x + tile.x) * PRIMARY_TILE_WORDS;
         let flags = primary_tiles[tiles.x * tiles.y * PRIMARY_TILE_WORDS + tile.y * tiles_x + tile.x];
+        stores_gbuffer = (flags & TILE_GBUFFER_SKIPS) == 0u;
+        if frame.gbuffer_only != 0u {
+            if stores_gbuffer {
+                // Completing the last sample's G-buffer: that sample
+                // stored this tile's texels already.
+                return;
+            }
+            stores_gbuffer = true;
+        }
         raster_may_show = (flags & TILE_MESH_MAY_SHOW) != 0u;
         accumulates = (flags & TILE_TRACE_ACCUMULATES) != 0u;
-        stores_gbuffer = (flags & TILE_GBUFFER_SKIPS) == 0u || frame.gbuffer_only != 0u;
         let listed = primary_tiles[r] != PRIMARY_TILE_WALK;
         if listed {
             hit = trace_listed(r, o, d, hybrid);

@@ -37,8 +37,10 @@ struct FrameUniforms {
     // OUTLINE_MARK_TRACED and the accumulate pass leaves them alone.
     trace_accumulates: u32,
     // 1 for a dispatch that only completes the last sample's G-buffer
-    // (src/render/mod.rs, Renderer::complete_gbuffer): every tile stores
-    // its normal, depth and id, and nothing is shaded or accumulated.
+    // (src/render/mod.rs, Renderer::complete_gbuffer): the tiles that
+    // sample left unstored (TILE_GBUFFER_SKIPS) store their normal, depth
+    // and id, the others return at once, and nothing is shaded or
+    // accumulated.
     gbuffer_only: u32,
     _pad1: u32,
     _pad2: u32,

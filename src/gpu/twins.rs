@@ -70,8 +70,9 @@ pub struct FrameUniforms {
     /// flag [`TILE_TRACE_ACCUMULATES`] to the accumulator itself.
     pub trace_accumulates: u32,
     /// 1 for a trace dispatch that only completes the last sample's
-    /// G-buffer (`Renderer::complete_gbuffer`): every tile stores its
-    /// normal, depth and id, and nothing is shaded or accumulated.
+    /// G-buffer (`Renderer::complete_gbuffer`): the tiles that sample left
+    /// unstored ([`TILE_GBUFFER_SKIPS`]) store their normal, depth and id,
+    /// the others return at once, and nothing is shaded or accumulated.
     pub gbuffer_only: u32,
     pub _pad1: u32,
     pub _pad2: u32,

@@ -1283,8 +1283,9 @@ impl Renderer {
     /// left unstored (`TILE_GBUFFER_SKIPS`), for a reader of the whole
     /// G-buffer (a moving frame's reproject pass, the read-backs): the
     /// pass again, over the same tiles with the same uniforms but
-    /// `gbuffer_only`, which stores every pixel's primary hit and shades
-    /// and adds nothing. Submitted at once, before the next sample writes
+    /// `gbuffer_only`, which stores the primary hits of the tiles the
+    /// sample left unstored, passes over the others, and shades and adds
+    /// nothing. Submitted at once, before the next sample writes
     /// its uniforms and tiles.
     fn complete_gbuffer(&self, gpu: &Gpu) {
         let Some(uniforms) = self.partial_gbuffer else {
