@@ -99,6 +99,18 @@ fn trace_listed(r: u32, o: vec3<f32>, d: vec3<f32>, skip_meshes: bool) -> TraceH
     return finish_hit(top);
 }
 
+// trace_listed for a tile whose record lists at most one instance, from
+// the record's summary in the tile's flag word (TILE_RECORD_SHIFT): 0 for
+// none, k + 1 for instance k. The same tests and steps, without reading
+// the record.
+fn trace_summary(summary: u32, o: vec3<f32>, d: vec3<f32>, skip_meshes: bool) -> TraceHit {
+    var top = top_miss(3.0e38);
+    if summary != 0u && take_step() {
+        _ = test_instance(summary - 1u, o, d, 0.0, skip_meshes, 0u, &top);
+    }
+    return finish_hit(top);
+}
+
 // The normal facing the ray: two-sided surfaces are shaded on both sides.
 fn facing_normal(h: TraceHit, d: vec3<f32>) -> vec3<f32> {
     return select(h.normal, -h.normal, dot(h.geometric, d) > 0.0);
@@ -535,9 +547,16 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
         }
         raster_may_show = (flags & TILE_MESH_MAY_SHOW) != 0u;
         accumulates = (flags & TILE_TRACE_ACCUMULATES) != 0u;
-        let listed = primary_tiles[r] != PRIMARY_TILE_WALK;
-        if listed {
-            hit = trace_listed(r, o, d, hybrid);
+        // A record of at most one instance is read from its summary.
+        let summary = flags >> TILE_RECORD_SHIFT;
+        var listed = true;
+        if summary != TILE_RECORD_READ {
+            hit = trace_summary(summary, o, d, hybrid);
+        } else {
+            listed = primary_tiles[r] != PRIMARY_TILE_WALK;
+            if listed {
+                hit = trace_listed(r, o, d, hybrid);
+            }
         }
         let walked = trace_masked(!listed, o, d, 0.0, 3.0e38, hybrid, false);
         if !listed {

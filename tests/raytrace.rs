@@ -1381,19 +1381,35 @@ fn selected_tables_draw_what_indexed_reads_draw() {
 /// cut; the G-buffer's ids (the last sample's primary hits) are the same
 /// too. And the tiles are used: the kernel read the CPU's tiles of the
 /// last sample, and most of them hold a list, shorter than the scene's
-/// instance count.
+/// instance count. A ball against the sky is a fifth case: its tiles
+/// list the ball alone or nothing, which the kernel takes from the
+/// tile's flag word (the record's summary) without reading the record.
 #[test]
 fn primary_tiles_draw_what_the_walk_draws() {
     let gpu = gpu();
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let ball = r#"(version: 1,
+        camera: (eye: (0.6, 0.8, 1.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 64, height: 64),
+        lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.3, 0.2), model: Toon(bands: 4)) },
+        shapes: { "ball": Sphere(radius: 0.45) },
+        instances: [(shape: "ball", material: "m")],
+    )"#;
     let cases = [
         ("default.ron", RenderMode::Hybrid),
         ("default.ron", RenderMode::Raytrace),
         ("anchor_dof_motion.ron", RenderMode::Raytrace),
         ("csg_textbook.ron", RenderMode::Raytrace),
+        ("a ball", RenderMode::Raytrace),
     ];
+    // Tiles whose record's summary is 0 (no instance) and k + 1 (one).
+    let (mut none, mut one) = (0, 0);
     for (file, mode) in cases {
-        let scene = Scene::load(&dir.join(file)).unwrap();
+        let scene = if file == "a ball" {
+            Scene::from_ron_str(ball, file, &dir).unwrap()
+        } else {
+            Scene::load(&dir.join(file)).unwrap()
+        };
         let settings = small_settings(mode);
         let draw = |on: bool| {
             gpu.set_primary_tiles(on);
@@ -1419,12 +1435,35 @@ fn primary_tiles_draw_what_the_walk_draws() {
             "{file}: the tiles the kernel read"
         );
         // Per tile a record, then one word: whether a rasterized mesh may
-        // show (hybrid mode), where the kernel reads the raster G-buffer.
-        let count = tiles.len() / (celray::gpu::twins::PRIMARY_TILE_WORDS as usize + 1);
+        // show (hybrid mode), where the kernel reads the raster G-buffer,
+        // and above TILE_RECORD_SHIFT the record's summary, from which
+        // the kernel tests a tile of no instance or one without reading
+        // its record (tallied for the end: both kinds must occur, so
+        // that the pictures above compare that path with the walk too).
+        use celray::gpu::twins::{
+            PRIMARY_TILE_WORDS, TILE_MESH_MAY_SHOW, TILE_RECORD_READ, TILE_RECORD_SHIFT,
+        };
+        let count = tiles.len() / (PRIMARY_TILE_WORDS as usize + 1);
         assert_eq!(count, 21 * 12, "{file}: 8 x 8 tiles over 164 x 92");
-        let meshes = tiles[tiles.len() - count..]
+        let flags = &tiles[tiles.len() - count..];
+        let summaries: Vec<u32> = flags.iter().map(|f| f >> TILE_RECORD_SHIFT).collect();
+        for (t, &s) in summaries.iter().enumerate() {
+            let record = &tiles[t * PRIMARY_TILE_WORDS as usize..][..PRIMARY_TILE_WORDS as usize];
+            let want = match record[0] {
+                0 => 0,
+                1 => record[1] + 1,
+                _ => TILE_RECORD_READ,
+            };
+            assert_eq!(s, want, "{file}: tile {t}'s summary of {record:?}");
+        }
+        none += summaries.iter().filter(|&&s| s == 0).count();
+        one += summaries
             .iter()
-            .filter(|&&m| m == 1)
+            .filter(|&&s| s != 0 && s != TILE_RECORD_READ)
+            .count();
+        let meshes = flags
+            .iter()
+            .filter(|&&m| m & TILE_MESH_MAY_SHOW != 0)
             .count();
         if mode == RenderMode::Hybrid {
             // The cow covers some tiles, not all.
@@ -1449,4 +1488,8 @@ fn primary_tiles_draw_what_the_walk_draws() {
             "{file}: every list holds all {instances} instances"
         );
     }
+    assert!(
+        none > 0 && one > 0,
+        "tiles of no instance ({none}) and of one ({one})"
+    );
 }

@@ -364,3 +364,41 @@ fn a_balls_bounding_sphere_flags_only_the_tiles_near_its_disk() {
         "the box flags {far_out} tiles far from the ball"
     );
 }
+
+/// A record's summary in the tile's flag word (`TILE_RECORD_SHIFT`): 0
+/// for no instance, k + 1 for instance k alone, and "read the record"
+/// for two instances, a walk, or an index whose k + 1 would be taken for
+/// "read the record" (the summary has 32 - TILE_RECORD_SHIFT bits).
+#[test]
+fn a_record_of_at_most_one_instance_is_summarized_in_the_flag_word() {
+    use celray::accel::screen_tiles::record_summary;
+    use celray::gpu::twins::{PRIMARY_TILE_WALK, TILE_RECORD_READ, TILE_RECORD_SHIFT};
+    let record = |words: &[u32]| {
+        let mut r = [0u32; PRIMARY_TILE_WORDS as usize];
+        r[..words.len()].copy_from_slice(words);
+        r
+    };
+    assert_eq!(record_summary(&record(&[0])), 0);
+    assert_eq!(record_summary(&record(&[1, 0])), 1);
+    assert_eq!(record_summary(&record(&[1, 41])), 42);
+    assert_eq!(record_summary(&record(&[2, 3, 5])), TILE_RECORD_READ);
+    assert_eq!(
+        record_summary(&record(&[PRIMARY_TILE_WALK])),
+        TILE_RECORD_READ
+    );
+    assert_eq!(
+        record_summary(&record(&[1, TILE_RECORD_READ - 2])),
+        TILE_RECORD_READ - 1
+    );
+    assert_eq!(
+        record_summary(&record(&[1, TILE_RECORD_READ - 1])),
+        TILE_RECORD_READ
+    );
+    // The summary fills the word above the flags, and no summary reaches
+    // the flag bits.
+    assert_eq!(
+        TILE_RECORD_READ << TILE_RECORD_SHIFT >> TILE_RECORD_SHIFT,
+        TILE_RECORD_READ
+    );
+    assert_eq!(u32::MAX >> TILE_RECORD_SHIFT, TILE_RECORD_READ);
+}

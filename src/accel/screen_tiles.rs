@@ -28,7 +28,9 @@ use std::ops::RangeInclusive;
 use glam::{DVec3, DVec4, Mat4, Vec2, Vec3, Vec4};
 
 use crate::accel::bvh::Aabb;
-use crate::accel::layout::{PRIMARY_TILE_MAX, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS};
+use crate::accel::layout::{
+    PRIMARY_TILE_MAX, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, TILE_RECORD_READ,
+};
 
 /// Scenes with more instances walk the BVH for every primary ray: most of
 /// their tiles would see more than [`PRIMARY_TILE_MAX`] and walk anyway.
@@ -122,6 +124,19 @@ pub fn primary_tiles(
         }
     }
     out
+}
+
+/// The summary of one tile's record (of [`primary_tiles`]) that the flag
+/// word after the records keeps above
+/// [`TILE_RECORD_SHIFT`](crate::accel::layout::TILE_RECORD_SHIFT): 0 where the
+/// record lists no instance, k + 1 where it lists instance k alone, else
+/// [`TILE_RECORD_READ`] (more instances, a walk, or an index too large).
+pub fn record_summary(record: &[u32]) -> u32 {
+    match record[0] {
+        0 => 0,
+        1 if record[1] < TILE_RECORD_READ - 1 => record[1] + 1,
+        _ => TILE_RECORD_READ,
+    }
 }
 
 /// The tiles of `tile_px` over `size`: across and down.

@@ -35,8 +35,8 @@ use wgpu::util::DeviceExt;
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::twins::{
     FrameUniforms, ReprojectUniforms, OUTLINE_MARK_SEARCH, SHAPE_MESH, TEMPORAL_REJECT_CLIP,
-    TEMPORAL_REJECT_NONE, TILE_GBUFFER_SKIPS, TILE_MESH_MAY_SHOW, TILE_TRACE_ACCUMULATES,
-    TRACE_WORKGROUP,
+    TEMPORAL_REJECT_NONE, TILE_GBUFFER_SKIPS, TILE_MESH_MAY_SHOW, TILE_RECORD_SHIFT,
+    TILE_TRACE_ACCUMULATES, TRACE_WORKGROUP,
 };
 use crate::gpu::{readback, Gpu, GpuError};
 use crate::sampling::{Sample, SampleSchedule};
@@ -829,6 +829,11 @@ impl Renderer {
             tiles.extend(meshes.iter().map(|&m| m * TILE_MESH_MAY_SHOW));
         } else {
             tiles.resize(tiles.len() + count, 0);
+        }
+        let words = crate::gpu::twins::PRIMARY_TILE_WORDS as usize;
+        let (records, flag_words) = tiles.split_at_mut(count * words);
+        for (record, word) in records.chunks_exact(words).zip(flag_words.iter_mut()) {
+            *word |= crate::accel::screen_tiles::record_summary(record) << TILE_RECORD_SHIFT;
         }
         if !self.trace_may_accumulate {
             return (tiles, false);

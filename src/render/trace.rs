@@ -21,7 +21,7 @@ use crate::gpu::layout::{
 use crate::gpu::shader::Traversal;
 use crate::gpu::twins::{
     CSG_FAST_COUNT_SHIFT, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, SHAPE_CSG, SHAPE_MESH,
-    TILE_MESH_MAY_SHOW, TRACE_WORKGROUP,
+    TILE_MESH_MAY_SHOW, TILE_RECORD_READ, TILE_RECORD_SHIFT, TRACE_WORKGROUP,
 };
 use crate::gpu::uniform_tables::{SelectedTables, UniformTables};
 use crate::gpu::{readback, shader, Gpu, GpuError};
@@ -280,7 +280,10 @@ fn tile_words(width: u32, height: u32) -> usize {
 fn walking_tiles(gpu: &Gpu, width: u32, height: u32) -> wgpu::Buffer {
     let records = tile_count(width, height) as usize * PRIMARY_TILE_WORDS as usize;
     let mut words = vec![PRIMARY_TILE_WALK; records];
-    words.resize(tile_words(width, height), TILE_MESH_MAY_SHOW);
+    words.resize(
+        tile_words(width, height),
+        TILE_MESH_MAY_SHOW | TILE_RECORD_READ << TILE_RECORD_SHIFT,
+    );
     gpu.device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("primary ray tiles"),
