@@ -1449,11 +1449,7 @@ fn primary_tiles_draw_what_the_walk_draws() {
         let summaries: Vec<u32> = flags.iter().map(|f| f >> TILE_RECORD_SHIFT).collect();
         for (t, &s) in summaries.iter().enumerate() {
             let record = &tiles[t * PRIMARY_TILE_WORDS as usize..][..PRIMARY_TILE_WORDS as usize];
-            let want = match record[0] {
-                0 => 0,
-                1 => record[1] + 1,
-                _ => TILE_RECORD_READ,
-            };
+            let want = celray::accel::screen_tiles::record_summary(record);
             assert_eq!(s, want, "{file}: tile {t}'s summary of {record:?}");
         }
         none += summaries.iter().filter(|&&s| s == 0).count();
