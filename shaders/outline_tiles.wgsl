@@ -63,8 +63,11 @@
 // (accel::screen_tiles::reached_tiles): 0 where no texel of the tile or
 // its halo can be a source, from the projected boxes of the instances
 // whose outline reaches other pixels (1 everywhere where it is not made:
-// scenes of many instances). Such a tile is skipped without reading the
-// G-buffer: way 1 below, proven before the texels are read. Where the
+// scenes of many instances); also 0 where the CPU proves the tile and its
+// halo the smooth inside of one sphere, with half of way 2's per-step
+// bounds to spare (accel::screen_tiles::smooth_sphere_tiles; traced
+// primary hits only). Such a tile is skipped without reading the
+// G-buffer: way 1 or way 2 below, proven before the texels are read. Where the
 // trace pass accumulates (frame.trace_accumulates), it has already added
 // the colour of exactly these tiles' pixels (the CPU gives it the same
 // flags: Renderer::tiles_seen_by).

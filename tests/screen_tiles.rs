@@ -403,3 +403,156 @@ fn a_record_of_at_most_one_instance_is_summarized_in_the_flag_word() {
     let flags = TILE_MESH_MAY_SHOW | TILE_TRACE_ACCUMULATES | TILE_GBUFFER_SKIPS;
     assert_eq!(flags >> TILE_RECORD_SHIFT, 0);
 }
+
+/// `smooth_sphere_tiles` claims a tile only where the outline marks would
+/// prove it the smooth inside of one sphere, with half of each per-step
+/// bound to spare: along the kernel's ray of every pixel of the tile and
+/// its halo (the CPU tracer, the kernel's twin) the closest hit is the
+/// sphere, and between every two neighbouring pixels there the view depth
+/// changes its log by at most half of `SmoothSteps::ln_depth` and the
+/// normal turns by at most half of `SmoothSteps::angle`. The scene puts
+/// what could break that near the ball: a floor it rests on (no ray meets
+/// the floor before the ball's visible cap), a crate between the eye and
+/// part of the ball, and an ellipsoid (not an exact sphere, so never
+/// claimed). Cases: outline radius 1 and 3, 8 and 16 px tiles, sub-pixel
+/// shifts and a lens point (the eye moves with it).
+///
+/// And it claims enough to matter: the tile at the centre of the ball's
+/// disc (a ray meets the ball head-on there, incidence 0, so the normal
+/// turns (1 + D / R) times the pixel angle a step, far under the bound)
+/// is claimed in every case; with radius 1 at least half of the tiles
+/// whose every pixel sees the ball are (the bounds hold out to incidence
+/// 60 degrees there, three quarters of the disc, from the doc comment's
+/// formulas at this camera).
+#[test]
+fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
+    use celray::accel::screen_tiles::{smooth_sphere_tiles, SmoothSteps};
+    let ron = r#"(version: 1,
+        camera: (eye: (0.5, 2.0, 4.0), target: (0.0, 1.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 640, height: 360),
+        lights: [Directional(direction: (-0.5, -1.0, -0.6), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) },
+        shapes: {
+            "floor": Plane(Quad(half_size: (20.0, 20.0))),
+            "ball": Sphere(radius: 1.0),
+            "crate": Box(half_extents: (0.06, 0.06, 0.06)),
+        },
+        instances: [
+            (shape: "floor", material: "m"),
+            (shape: "ball", material: "m", transform: (translate: (0.0, 1.0, 0.0))),
+            (shape: "crate", material: "m", transform: (translate: (0.6, 1.55, 2.2))),
+            (shape: "ball", material: "m", transform: (translate: (-2.5, 0.5, -1.0), scale: (1.5, 0.5, 0.5))),
+        ],
+    )"#;
+    let mut scene = Scene::from_ron_str(ron, "test.ron", std::path::Path::new(".")).unwrap();
+    scene.camera.focus_distance = Some(4.0);
+    scene.camera.aperture_radius = 0.1;
+    let order: Vec<usize> = (0..scene.instances.len()).collect();
+    let accel = SceneAccel::build(&scene, &order).unwrap();
+    let spheres = accel.exact_spheres();
+    assert_eq!(
+        spheres.iter().map(|s| s.instance).collect::<Vec<_>>(),
+        [1],
+        "only the round ball is an exact sphere"
+    );
+    let ball = spheres[0];
+    let size = (scene.camera.width, scene.camera.height);
+    let cases = [
+        (Vec2::splat(0.5), Vec2::ZERO, 8u32, 1u32),
+        (Vec2::new(0.1, 0.9), Vec2::new(0.6, -0.8), 8, 1),
+        (Vec2::new(0.9, 0.3), Vec2::ZERO, 8, 3),
+        (Vec2::new(0.4, 0.6), Vec2::new(-1.0, 0.0), 16, 3),
+    ];
+    for (shift, lens, tile, reach) in cases {
+        let depth = depth_range(&scene.camera, scene.bounds());
+        let cam = sample_camera(&scene.camera, size, shift, lens, depth);
+        let steps = SmoothSteps::for_radius(reach);
+        let claimed = smooth_sphere_tiles(
+            &accel.footprints,
+            &spheres,
+            cam.forward,
+            cam.clip_from_world,
+            size,
+            tile,
+            reach,
+            steps,
+        );
+        let tiles_x = size.0.div_ceil(tile);
+        assert_eq!(claimed.len() as u32, tiles_x * size.1.div_ceil(tile));
+        // Every pixel's hit on the ball (normal, view depth), if the ball
+        // is its closest hit.
+        let hits: Vec<Option<(Vec3, f32)>> = (0..size.0 * size.1)
+            .map(|i| {
+                let (x, y) = (i % size.0, i / size.0);
+                let (o, d) = kernel_ray(cam.clip_from_world, size, x, y);
+                let h = accel.closest_hit(o, d, 0.0, f32::INFINITY).hit?;
+                (h.instance == 1).then(|| (h.geometric, (o + d * h.t - cam.eye).dot(cam.forward)))
+            })
+            .collect();
+        let region = |tx: u32, ty: u32| {
+            let lo = (
+                (tx * tile).saturating_sub(reach),
+                (ty * tile).saturating_sub(reach),
+            );
+            let hi = (
+                ((tx + 1) * tile + reach).min(size.0) - 1,
+                ((ty + 1) * tile + reach).min(size.1) - 1,
+            );
+            (lo, hi)
+        };
+        let (mut count, mut all_ball) = (0, 0);
+        for t in 0..claimed.len() as u32 {
+            let (tx, ty) = (t % tiles_x, t / tiles_x);
+            let ((x0, y0), (x1, y1)) = region(tx, ty);
+            let every =
+                (y0..=y1).all(|y| (x0..=x1).all(|x| hits[(y * size.0 + x) as usize].is_some()));
+            all_ball += usize::from(every);
+            if !claimed[t as usize] {
+                continue;
+            }
+            count += 1;
+            assert!(
+                every,
+                "tile ({tx}, {ty}) ({tile} px, reach {reach}): a pixel does not see the ball first"
+            );
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let (n, w) = hits[(y * size.0 + x) as usize].unwrap();
+                    for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                        if nx > x1 || ny > y1 {
+                            continue;
+                        }
+                        let (m, v) = hits[(ny * size.0 + nx) as usize].unwrap();
+                        let ratio = (f64::from(w) / f64::from(v)).ln().abs();
+                        let turn = f64::from(n.dot(m) / (n.length() * m.length()))
+                            .min(1.0)
+                            .acos();
+                        assert!(
+                            ratio <= 0.5 * steps.ln_depth && turn <= 0.5 * steps.angle + 1e-6,
+                            "tile ({tx}, {ty}) ({tile} px, reach {reach}), pixels ({x}, {y}) and \
+                             ({nx}, {ny}): depth log {ratio:.5} against {:.5}, turn {turn:.5} \
+                             against {:.5}",
+                            0.5 * steps.ln_depth,
+                            0.5 * steps.angle
+                        );
+                    }
+                }
+            }
+        }
+        // The tile holding the projection of the ball's centre.
+        let centre = cam.clip_from_world.project_point3(ball.centre);
+        let px = (
+            ((centre.x + 1.0) * 0.5 * size.0 as f32) as u32,
+            ((1.0 - centre.y) * 0.5 * size.1 as f32) as u32,
+        );
+        assert!(
+            claimed[((px.1 / tile) * tiles_x + px.0 / tile) as usize],
+            "the tile at the ball's centre, pixel {px:?} ({tile} px, reach {reach})"
+        );
+        if reach == 1 {
+            assert!(
+                2 * count >= all_ball,
+                "{count} tiles claimed of {all_ball} that see only the ball ({tile} px)"
+            );
+        }
+    }
+}

@@ -7,7 +7,8 @@
 // texels, the longest a search of radius r needs: depths within 0.96 end
 // to end (an edge is DEPTH_JUMP = 5%), normals within 54 degrees (0.9 of
 // accumulate.wgsl's 60-degree CREASE_COS). x: the depth factor a step may
-// change by, y: the cosine of the angle a step may turn.
+// change by, y: the cosine of the angle a step may turn. The CPU's twin,
+// for the tiles it proves smooth itself: accel::screen_tiles::SmoothSteps.
 fn smooth_step_bounds(r: i32) -> vec2<f32> {
     let steps = f32(2 * max(r, 1));
     return vec2<f32>(pow(1.0 - 0.8 * DEPTH_JUMP, 1.0 / steps), cos(radians(54.0) / steps));

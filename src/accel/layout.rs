@@ -227,3 +227,8 @@ pub struct GpuCsgLeaf {
     /// ([`GpuShape::csg_fast`]); else 0.
     pub table: u32,
 }
+
+/// A surface is in front of another when its view depth is smaller by this
+/// fraction: an outline's depth edge (accumulate) and a disocclusion
+/// (reproject).
+pub const DEPTH_JUMP: f32 = 0.05;

@@ -185,6 +185,38 @@ pub fn world_sphere(shape: &GpuShape, world_from_object: Mat4) -> Option<glam::V
     )
 }
 
+impl SceneAccel {
+    /// The instances that are exactly spheres in the world
+    /// (`screen_tiles::ExactSphere`): static sphere shapes whose matrix is
+    /// a similarity (columns of one length and at right angles, to a
+    /// relative 1e-5), so that every hit the kernels find on them is a
+    /// hit on this sphere, up to f32 rounding.
+    pub fn exact_spheres(&self) -> Vec<screen_tiles::ExactSphere> {
+        self.instances
+            .iter()
+            .enumerate()
+            .filter(|&(k, &(_, _, shape))| {
+                self.shapes[shape as usize].kind == SHAPE_SPHERE && !self.moving[k]
+            })
+            .filter_map(|(k, &(world_from_object, _, shape))| {
+                let m = glam::Mat3::from_mat4(world_from_object);
+                let cols = [m.x_axis, m.y_axis, m.z_axis];
+                let scale = m.x_axis.length();
+                let tol = 1e-5 * scale * scale;
+                let similar = (0..3).all(|a| {
+                    (cols[a].length_squared() - scale * scale).abs() <= tol
+                        && cols[a].dot(cols[(a + 1) % 3]).abs() <= tol
+                });
+                (similar && scale > 0.0).then(|| screen_tiles::ExactSphere {
+                    instance: k,
+                    centre: world_from_object.transform_point3(Vec3::ZERO),
+                    radius: self.shapes[shape as usize].params[0] * scale,
+                })
+            })
+            .collect()
+    }
+}
+
 /// Builds a mesh's bottom-level BVH, appending its nodes (child indices
 /// relative to `nodes`) and triangles; returns its root node index.
 pub(crate) fn append_mesh_blas(

@@ -29,7 +29,7 @@ use glam::{DVec3, DVec4, Mat4, Vec2, Vec3, Vec4};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
-    PRIMARY_TILE_MAX, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, TILE_RECORD_READ,
+    DEPTH_JUMP, PRIMARY_TILE_MAX, PRIMARY_TILE_WALK, PRIMARY_TILE_WORDS, TILE_RECORD_READ,
 };
 
 /// Scenes with more instances walk the BVH for every primary ray: most of
@@ -210,6 +210,10 @@ struct TileCones {
     tile_px: f64,
     /// The bound on every tile's half-angle (radians).
     half_angle: f64,
+    /// A bound on the angle between the rays of two neighbouring pixels
+    /// (radians): a pixel's step on the far plane over the plane's
+    /// distance, 1% wider as `half_angle`.
+    pixel_angle: f64,
 }
 
 /// A bounding sphere as [`TileCones::meets`] tests it: the unit direction
@@ -247,7 +251,19 @@ impl TileCones {
             rays: rays.filter(|_| half_angle.is_finite()),
             tile_px: f64::from(tile_px),
             half_angle,
+            pixel_angle: 1.01 * dx.length().max(dy.length()) / distance,
         }
+    }
+
+    /// The unit axis of tile (tx, ty)'s cone, from the eye.
+    fn axis(&self, tx: usize, ty: usize) -> Option<DVec3> {
+        let (eye, [h0, hx, hy]) = self.rays?;
+        let (x, y) = (
+            (tx as f64 + 0.5) * self.tile_px - 0.5,
+            (ty as f64 + 0.5) * self.tile_px - 0.5,
+        );
+        let far = h0 + x * hx + y * hy;
+        Some((far.truncate() / far.w - eye).normalize())
     }
 
     /// `sphere` (centre xyz, radius w) as [`TileCones::meets`] tests it;
@@ -271,16 +287,10 @@ impl TileCones {
     /// angle between the tile's axis and the sphere's centre is at most
     /// the half-angle plus the sphere's angular radius.
     fn meets(&self, sphere: &Option<SphereCone>, tx: usize, ty: usize) -> bool {
-        let (Some(s), Some((eye, [h0, hx, hy]))) = (sphere, self.rays) else {
+        let (Some(s), Some(axis)) = (sphere, self.axis(tx, ty)) else {
             return true;
         };
-        let (x, y) = (
-            (tx as f64 + 0.5) * self.tile_px - 0.5,
-            (ty as f64 + 0.5) * self.tile_px - 0.5,
-        );
-        let far = h0 + x * hx + y * hy;
-        let axis = far.truncate() / far.w - eye;
-        axis.dot(s.to_centre) >= s.cos_reach * axis.length()
+        axis.dot(s.to_centre) >= s.cos_reach
     }
 }
 
@@ -317,6 +327,205 @@ pub fn reached_tiles(
             for tx in xs.clone() {
                 if cones.meets(&sphere, tx, ty) {
                     out[ty * tiles.0 + tx] = 1;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// How many (sphere, other instance) pairs [`smooth_sphere_tiles`] looks
+/// at per sample, at most: about a millisecond of the CPU's time.
+pub const SMOOTH_SPHERE_PAIRS: usize = 1 << 16;
+
+/// An instance that is exactly a sphere in the world: a static sphere
+/// shape under a similarity (rotation, uniform scale, translation), so
+/// the kernels' hits are those of this sphere. For [`smooth_sphere_tiles`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExactSphere {
+    /// Its index among the footprints (the GPU instance index).
+    pub instance: usize,
+    pub centre: Vec3,
+    pub radius: f32,
+}
+
+/// How far the normal and the view depth may move between the primary
+/// hits of two neighbouring pixels for the outline marks' proof
+/// (`shaders/lib/outline.wgsl`, `smooth_step_bounds`): the log of the
+/// depth factor, and the angle (radians).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmoothSteps {
+    pub ln_depth: f64,
+    pub angle: f64,
+}
+
+impl SmoothSteps {
+    /// The marks' bounds for an outline search of radius `r`: paths of L =
+    /// 2 max(r, 1) steps, view depths within 1 - 0.8 [`DEPTH_JUMP`] end to
+    /// end and normals within 54 degrees, shared out evenly over the steps.
+    pub fn for_radius(r: u32) -> SmoothSteps {
+        let steps = f64::from(2 * r.max(1));
+        SmoothSteps {
+            ln_depth: -(1.0 - 0.8 * f64::from(DEPTH_JUMP)).ln() / steps,
+            angle: 54f64.to_radians() / steps,
+        }
+    }
+}
+
+/// Per tile of `tile_px` over `size`, row by row: true where the CPU
+/// proves what the outline marks would prove texel by texel, that the
+/// tile and its halo of `reach_px` pixels are the smooth inside of one
+/// sphere of `spheres`, with half of `steps` to spare for the kernels'
+/// rounding. Then no pixel of the tile can take an outline, and the marks
+/// need not read it.
+///
+/// For the sample's projection `clip_from_world` (eye e, view direction
+/// `forward`) and a sphere of centre c and radius R at distance D from
+/// the eye, a ray at angle a from the direction u to the centre meets it
+/// where sin a <= R / D, at incidence i with sin i = (D / R) sin a, at
+/// distance t = D cos a - R cos i >= D - R. Let a tile's cone (its rays
+/// and its halo's, as [`TileCones`] bounds them) reach out to a_max from
+/// u, with i_max its incidence, and let the rays of two neighbouring
+/// pixels be at most d apart (`TileCones::pixel_angle`). Then, within the
+/// cone:
+/// - every ray meets the sphere when sin a_max < R / D, and nothing else
+///   comes first where no other instance's rectangle reaches the tile
+///   and its halo, unless that instance lies wholly beyond the plane of
+///   the sphere's silhouette seen from the eye (u . (x - e) >
+///   (D^2 - R^2) / D, where no front hit lies) or beyond one face of its
+///   own box from both the eye and the sphere's visible cap (a floor
+///   under a ball resting on it);
+/// - the normal turns by at most (1 + S) d between neighbours, S = D /
+///   (R cos i_max): along u's great circles the normal's angle is a + i,
+///   whose derivative is 1 + D cos a / (R cos i); around u it turns by
+///   sin(a + i) / sin a <= cos i + D cos a / R per unit of angle;
+/// - the view depth t (v . f), v the ray's unit direction, changes its
+///   log by at most d (D sin a_max (S - 1) / (D - R) + tan f_max): dt /
+///   da = D sin a (D cos a / (R cos i) - 1), which is not negative, and
+///   f_max is the cone's largest angle with `forward`.
+///
+/// A sphere seen from inside, a cone too wide, or a projection that is
+/// not a perspective one proves nothing.
+#[allow(clippy::too_many_arguments)]
+pub fn smooth_sphere_tiles(
+    bounds: &[impl ScreenBound],
+    spheres: &[ExactSphere],
+    forward: Vec3,
+    clip_from_world: Mat4,
+    size: (u32, u32),
+    tile_px: u32,
+    reach_px: u32,
+    steps: SmoothSteps,
+) -> Vec<bool> {
+    let tiles = tile_grid(size, tile_px);
+    let mut out = vec![false; tiles.0 * tiles.1];
+    let cones = TileCones::new(clip_from_world, size, tile_px, reach_px);
+    let Some((eye, _)) = cones.rays else {
+        return out;
+    };
+    let forward = forward.as_dvec3().normalize();
+    let (h, d) = (cones.half_angle, cones.pixel_angle);
+    let (sin_h, cos_h) = h.sin_cos();
+    // Per tile, the last sphere (index into `spheres`) for which some
+    // other instance may come first there.
+    let mut blocked = vec![usize::MAX; out.len()];
+    let mut budget = SMOOTH_SPHERE_PAIRS;
+    for (n, s) in spheres.iter().enumerate() {
+        let c = s.centre.as_dvec3();
+        let radius = f64::from(s.radius);
+        let to_centre = c - eye;
+        let distance = to_centre.length();
+        if distance.is_nan() || distance <= radius * 1.001 {
+            continue;
+        }
+        // A disc too small to hold a tile and its halo proves nothing, and
+        // each sphere tried costs a look at every other instance.
+        let across = (radius / distance).asin() / d;
+        if across < f64::from(tile_px + 2 * reach_px) || budget < bounds.len() {
+            continue;
+        }
+        budget -= bounds.len();
+        let u = to_centre / distance;
+        let silhouette = (distance * distance - radius * radius) / distance;
+        // The visible cap's extent along each axis: its rim (the
+        // silhouette circle, centre c - (R^2 / D) u, radius R sqrt(1 -
+        // R^2 / D^2), across u) or, where the sphere's extreme point that
+        // way faces the eye (u_a >= R / D), that point.
+        let rim = radius * (1.0 - (radius / distance).powi(2)).sqrt();
+        let rim_centre = c - u * (radius * radius / distance);
+        let cap_extent = |a: usize| {
+            let across = rim * (1.0 - u[a] * u[a]).max(0.0).sqrt();
+            let low = if u[a] >= radius / distance {
+                c[a] - radius
+            } else {
+                rim_centre[a] - across
+            };
+            let high = if -u[a] >= radius / distance {
+                c[a] + radius
+            } else {
+                rim_centre[a] + across
+            };
+            (low, high)
+        };
+        let caps: [(f64, f64); 3] = std::array::from_fn(cap_extent);
+        // The other instances that may come before the sphere somewhere.
+        let in_way = |j: usize| {
+            let b = grown_box(bounds[j].world_box(), eye.as_vec3());
+            let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+            let beyond = b
+                .corners()
+                .iter()
+                .all(|p| u.dot(p.as_dvec3() - eye) > silhouette);
+            let apart = (0..3).any(|a| {
+                (eye[a] > hi[a] && caps[a].0 > hi[a]) || (eye[a] < lo[a] && caps[a].1 < lo[a])
+            });
+            j != s.instance && !(beyond || apart)
+        };
+        for (_, xs, ys, _) in
+            touched_tiles(bounds, in_way, clip_from_world, size, tile_px, reach_px)
+        {
+            for ty in ys {
+                blocked[ty * tiles.0 + xs.start()..=ty * tiles.0 + xs.end()].fill(n);
+            }
+        }
+        let Some((_, xs, ys, _)) = touched_tiles(
+            bounds,
+            |j| j == s.instance,
+            clip_from_world,
+            size,
+            tile_px,
+            reach_px,
+        )
+        .next() else {
+            continue;
+        };
+        for ty in ys {
+            for tx in xs.clone() {
+                if blocked[ty * tiles.0 + tx] == n {
+                    continue;
+                }
+                let Some(axis) = cones.axis(tx, ty) else {
+                    continue;
+                };
+                // The sine and cosine of the axis' angle with `to`, grown by
+                // the cone's half-angle.
+                let widened = |to: DVec3| {
+                    let cos = axis.dot(to).clamp(-1.0, 1.0);
+                    let sin = (1.0 - cos * cos).sqrt();
+                    (sin * cos_h + cos * sin_h, cos * cos_h - sin * sin_h)
+                };
+                let (sin_a, cos_a) = widened(u);
+                let (sin_f, cos_f) = widened(forward);
+                let sin_i = distance / radius * sin_a;
+                if cos_a <= 0.0 || sin_i >= 1.0 || cos_f <= 0.05 {
+                    continue;
+                }
+                let slant = distance / (radius * (1.0 - sin_i * sin_i).sqrt());
+                let turn = (1.0 + slant) * d;
+                let depth =
+                    d * (distance * sin_a * (slant - 1.0) / (distance - radius) + sin_f / cos_f);
+                if turn <= 0.5 * steps.angle && depth <= 0.5 * steps.ln_depth {
+                    out[ty * tiles.0 + tx] = true;
                 }
             }
         }

@@ -205,10 +205,6 @@ pub const MAX_INVOCATION_STEPS: u32 = 48000;
 /// View depth of the G-buffer where no surface is hit (the largest finite
 /// f16, so it survives every target format).
 pub const FAR_DEPTH: f32 = 65504.0;
-/// A surface is in front of another when its view depth is smaller by this
-/// fraction: an outline's depth edge (accumulate) and a disocclusion
-/// (reproject).
-pub const DEPTH_JUMP: f32 = 0.05;
 /// Widest outline the accumulate pass draws, in pixels: wider material
 /// outlines are drawn this wide (it sizes the workgroup's tile halo).
 pub const MAX_OUTLINE_RADIUS: u32 = 8;

@@ -237,6 +237,10 @@ pub struct Renderer {
     /// reaches to the accumulator itself, where it reads primary tiles
     /// ([`Gpu::set_trace_accumulates`] when the renderer was made).
     trace_may_accumulate: bool,
+    /// Whether the outline marks skip the tiles the CPU proves the smooth
+    /// inside of one sphere ([`Gpu::set_smooth_spheres`] when the renderer
+    /// was made).
+    smooth_spheres: bool,
     /// The last sample's frame uniforms, where its trace pass left the
     /// normal, depth and id of some tiles unstored (`TILE_GBUFFER_SKIPS`:
     /// no pass of that sample read them); [`Renderer::complete_gbuffer`]
@@ -313,6 +317,7 @@ impl Renderer {
             temporal: TemporalState::default(),
             tile_px: None,
             trace_may_accumulate: gpu.trace_accumulates(),
+            smooth_spheres: gpu.smooth_spheres(),
             partial_gbuffer: None,
         };
         renderer.bind(gpu)?;
@@ -779,7 +784,7 @@ impl Renderer {
         let kernels = self.accumulate_kernels(&self.scene, &self.settings);
         let sources = kernels
             .outlines
-            .then(|| self.source_tiles_seen_by(camera.clip_from_world, kernels.tile_px));
+            .then(|| self.source_tiles_seen_by(&camera, kernels.tile_px, self.primary_mode()));
         self.tiles_seen_by(
             camera.clip_from_world,
             mode,
@@ -855,30 +860,60 @@ impl Renderer {
         (tiles, skips)
     }
 
-    /// Per accumulate tile of `tile_px`, whether an instance whose outline
-    /// reaches other pixels may show within the outline radius of it
-    /// (`accel::screen_tiles::reached_tiles`), in the sample whose
-    /// projection is `clip_from_world`; 1 everywhere in scenes of more
-    /// than `MAX_TILED_INSTANCES` instances, where projecting them all for
-    /// each sample would cost more than the reads it saves.
-    fn source_tiles_seen_by(&self, clip_from_world: glam::Mat4, tile_px: u32) -> Vec<u32> {
+    /// Per accumulate tile of `tile_px`, 1 where a pixel of it may take an
+    /// outline in the sample of `camera` with primary mode `mode`: an
+    /// instance whose outline reaches other pixels may show within the
+    /// outline radius of it (`accel::screen_tiles::reached_tiles`), unless
+    /// (traced primary hits only) the CPU proves the tile and its halo the
+    /// smooth inside of one sphere (`screen_tiles::smooth_sphere_tiles`),
+    /// where the outline marks would prove the same texel by texel;
+    /// 1 everywhere in scenes of more than `MAX_TILED_INSTANCES` instances,
+    /// where projecting them all for each sample would cost more than the
+    /// reads it saves.
+    fn source_tiles_seen_by(
+        &self,
+        camera: &camera::SampleCamera,
+        tile_px: u32,
+        mode: RenderMode,
+    ) -> Vec<u32> {
+        use crate::accel::screen_tiles::{self, SmoothSteps};
         let accel = &self.buffers.accel;
         let size = (self.settings.width, self.settings.height);
-        if accel.world_bounds.len() > crate::accel::screen_tiles::MAX_TILED_INSTANCES {
+        if accel.world_bounds.len() > screen_tiles::MAX_TILED_INSTANCES {
             let tiles = size.0.div_ceil(tile_px) * size.1.div_ceil(tile_px);
             return vec![1; tiles as usize];
         }
         let scene = &self.scene;
         let order = &self.buffers.instance_order;
         let reach = max_outline_px(scene).floor() as u32;
-        crate::accel::screen_tiles::reached_tiles(
+        let mut tiles = screen_tiles::reached_tiles(
             &accel.footprints,
             |k| scene.materials[scene.instances[order[k]].material].outline_width_px >= 1.0,
-            clip_from_world,
+            camera.clip_from_world,
             size,
             tile_px,
             reach,
-        )
+        );
+        // The raster pass draws spheres as tessellations, whose normals and
+        // depths the proof does not bound.
+        if mode != RenderMode::Raster && self.smooth_spheres {
+            let smooth = screen_tiles::smooth_sphere_tiles(
+                &accel.footprints,
+                &accel.exact_spheres(),
+                camera.forward,
+                camera.clip_from_world,
+                size,
+                tile_px,
+                reach,
+                SmoothSteps::for_radius(reach),
+            );
+            for (t, smooth) in tiles.iter_mut().zip(smooth) {
+                if smooth {
+                    *t = 0;
+                }
+            }
+        }
+        tiles
     }
 
     /// Renders one more sample into the accumulator (one dispatch per pass,
@@ -912,7 +947,10 @@ impl Renderer {
         let (outlines, tile_px) = (kernels.outlines, kernels.tile_px);
         // The sample's own projection, as the uniforms carry it.
         let clip_from_world = glam::Mat4::from_cols_array_2d(&uniforms.clip_from_world);
-        let sources = outlines.then(|| self.source_tiles_seen_by(clip_from_world, tile_px));
+        let sources = outlines.then(|| {
+            let camera = self.camera_for(&self.sample_schedule().sample(k));
+            self.source_tiles_seen_by(&camera, tile_px, mode)
+        });
         // Where the trace pass reads tiles, it adds the colour of those no
         // outline reaches to the accumulator itself (every tile without
         // outlines): the accumulate pass would only copy it there.
