@@ -404,71 +404,44 @@ fn a_record_of_at_most_one_instance_is_summarized_in_the_flag_word() {
     assert_eq!(flags >> TILE_RECORD_SHIFT, 0);
 }
 
-/// `smooth_sphere_tiles` claims a tile only where the outline marks would
-/// prove it the smooth inside of one sphere, with half of each per-step
-/// bound to spare: along the kernel's ray of every pixel of the tile and
+/// What [`check_smooth_claims`] found in one case: tiles claimed, tiles
+/// whose every pixel sees the ball first, and whether the tile at the
+/// centre of the ball's disc was claimed.
+struct Claims {
+    claimed: usize,
+    all_ball: usize,
+    centre_claimed: bool,
+}
+
+/// Checks `smooth_sphere_tiles`' claims for `ball` (an instance of
+/// `scene`) in each case (sub-pixel shift, lens point, tile edge, outline
+/// radius): along the kernel's ray of every pixel of a claimed tile and
 /// its halo (the CPU tracer, the kernel's twin) the closest hit is the
-/// sphere, and between every two neighbouring pixels there the view depth
+/// ball, and between every two neighbouring pixels there the view depth
 /// changes its log by at most half of `SmoothSteps::ln_depth` and the
-/// normal turns by at most half of `SmoothSteps::angle`. The scene puts
-/// what could break that near the ball: a floor it rests on (no ray meets
-/// the floor before the ball's visible cap), a crate between the eye and
-/// part of the ball, and an ellipsoid (not an exact sphere, so never
-/// claimed). Cases: outline radius 1 and 3, 8 and 16 px tiles, sub-pixel
-/// shifts and a lens point (the eye moves with it).
-///
-/// And it claims enough to matter: the tile at the centre of the ball's
-/// disc (a ray meets the ball head-on there, incidence 0, so the normal
-/// turns (1 + D / R) times the pixel angle a step, far under the bound)
-/// is claimed in every case; with radius 1 at least half of the tiles
-/// whose every pixel sees the ball are (the bounds hold out to incidence
-/// 60 degrees there, three quarters of the disc, from the doc comment's
-/// formulas at this camera).
-#[test]
-fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
+/// normal turns by at most half of `SmoothSteps::angle`.
+fn check_smooth_claims(
+    scene: &Scene,
+    ball: celray::accel::screen_tiles::ExactSphere,
+    cases: &[(Vec2, Vec2, u32, u32)],
+) -> Vec<Claims> {
     use celray::accel::screen_tiles::{smooth_sphere_tiles, SmoothSteps};
-    let ron = r#"(version: 1,
-        camera: (eye: (0.5, 2.0, 4.0), target: (0.0, 1.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 640, height: 360),
-        lights: [Directional(direction: (-0.5, -1.0, -0.6), color: (1.0, 1.0, 1.0), intensity: 1.0)],
-        materials: { "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) },
-        shapes: {
-            "floor": Plane(Quad(half_size: (20.0, 20.0))),
-            "ball": Sphere(radius: 1.0),
-            "crate": Box(half_extents: (0.06, 0.06, 0.06)),
-        },
-        instances: [
-            (shape: "floor", material: "m"),
-            (shape: "ball", material: "m", transform: (translate: (0.0, 1.0, 0.0))),
-            (shape: "crate", material: "m", transform: (translate: (0.6, 1.55, 2.2))),
-            (shape: "ball", material: "m", transform: (translate: (-2.5, 0.5, -1.0), scale: (1.5, 0.5, 0.5))),
-        ],
-    )"#;
-    let mut scene = Scene::from_ron_str(ron, "test.ron", std::path::Path::new(".")).unwrap();
-    scene.camera.focus_distance = Some(4.0);
-    scene.camera.aperture_radius = 0.1;
     let order: Vec<usize> = (0..scene.instances.len()).collect();
-    let accel = SceneAccel::build(&scene, &order).unwrap();
-    let spheres = accel.exact_spheres();
-    assert_eq!(
-        spheres.iter().map(|s| s.instance).collect::<Vec<_>>(),
-        [1],
-        "only the round ball is an exact sphere"
-    );
-    let ball = spheres[0];
+    let accel = SceneAccel::build(scene, &order).unwrap();
     let size = (scene.camera.width, scene.camera.height);
-    let cases = [
-        (Vec2::splat(0.5), Vec2::ZERO, 8u32, 1u32),
-        (Vec2::new(0.1, 0.9), Vec2::new(0.6, -0.8), 8, 1),
-        (Vec2::new(0.9, 0.3), Vec2::ZERO, 8, 3),
-        (Vec2::new(0.4, 0.6), Vec2::new(-1.0, 0.0), 16, 3),
-    ];
-    for (shift, lens, tile, reach) in cases {
+    let mut all = Vec::new();
+    for &(shift, lens, tile, reach) in cases {
+        let mut out = Claims {
+            claimed: 0,
+            all_ball: 0,
+            centre_claimed: false,
+        };
         let depth = depth_range(&scene.camera, scene.bounds());
         let cam = sample_camera(&scene.camera, size, shift, lens, depth);
         let steps = SmoothSteps::for_radius(reach);
         let claimed = smooth_sphere_tiles(
             &accel.footprints,
-            &spheres,
+            &accel.exact_spheres(),
             cam.forward,
             cam.clip_from_world,
             size,
@@ -485,7 +458,8 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
                 let (x, y) = (i % size.0, i / size.0);
                 let (o, d) = kernel_ray(cam.clip_from_world, size, x, y);
                 let h = accel.closest_hit(o, d, 0.0, f32::INFINITY).hit?;
-                (h.instance == 1).then(|| (h.geometric, (o + d * h.t - cam.eye).dot(cam.forward)))
+                (h.instance as usize == ball.instance)
+                    .then(|| (h.geometric, (o + d * h.t - cam.eye).dot(cam.forward)))
             })
             .collect();
         let region = |tx: u32, ty: u32| {
@@ -499,17 +473,16 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
             );
             (lo, hi)
         };
-        let (mut count, mut all_ball) = (0, 0);
         for t in 0..claimed.len() as u32 {
             let (tx, ty) = (t % tiles_x, t / tiles_x);
             let ((x0, y0), (x1, y1)) = region(tx, ty);
             let every =
                 (y0..=y1).all(|y| (x0..=x1).all(|x| hits[(y * size.0 + x) as usize].is_some()));
-            all_ball += usize::from(every);
+            out.all_ball += usize::from(every);
             if !claimed[t as usize] {
                 continue;
             }
-            count += 1;
+            out.claimed += 1;
             assert!(
                 every,
                 "tile ({tx}, {ty}) ({tile} px, reach {reach}): a pixel does not see the ball first"
@@ -544,15 +517,137 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
             ((centre.x + 1.0) * 0.5 * size.0 as f32) as u32,
             ((1.0 - centre.y) * 0.5 * size.1 as f32) as u32,
         );
-        assert!(
-            claimed[((px.1 / tile) * tiles_x + px.0 / tile) as usize],
-            "the tile at the ball's centre, pixel {px:?} ({tile} px, reach {reach})"
-        );
-        if reach == 1 {
-            assert!(
-                2 * count >= all_ball,
-                "{count} tiles claimed of {all_ball} that see only the ball ({tile} px)"
-            );
-        }
+        out.centre_claimed = claimed[((px.1 / tile) * tiles_x + px.0 / tile) as usize];
+        all.push(out);
     }
+    all
+}
+
+/// `smooth_sphere_tiles` claims a tile only where the outline marks would
+/// prove it the smooth inside of one sphere, with half of each per-step
+/// bound to spare ([`check_smooth_claims`]), and it claims enough to
+/// matter. Three views:
+/// - a ball near the eye (D / R about 4, 640 x 360), with what could
+///   break the proof around it: a floor it rests on (no ray meets the
+///   floor before the ball's visible cap), a crate between the eye and
+///   part of the ball, and an ellipsoid (not an exact sphere, so never
+///   claimed); outline radius 1 and 3, 8 and 16 px tiles, sub-pixel
+///   shifts and a lens point (the eye moves with it). The depth bound is
+///   the one that limits the claims here. The tile at the centre of the
+///   disc (a ray meets the ball head-on there, incidence 0, so the normal
+///   turns (1 + D / R) times the pixel angle a step, far under the bound)
+///   is claimed in every case; with radius 1 at least half of the tiles
+///   whose every pixel sees the ball are (the bounds hold out to
+///   incidence 60 degrees there, three quarters of the disc, from the doc
+///   comment's formulas at this camera);
+/// - a small ball, rotated and scaled, far from the eye (D / R = 40)
+///   through a narrow lens (6 degrees), with outline radius 1 and 8:
+///   at radius 8 the normal's turn, (1 + D / (R cos i)) pixel angles a
+///   step, is the bound that limits the claims (out to incidence 66
+///   degrees, the depth's to 77), so a turn bound without the 1 / cos i
+///   would claim tiles whose pixels turn too far;
+/// - a ball the near plane cuts (the scene is the ball alone, 25 degrees
+///   off the view axis, so the near plane, set from the distance to the
+///   scene's centre, lies beyond the ball's nearest view depth): rays
+///   start inside it there, and no tile of it is claimed.
+#[test]
+fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
+    let ron = r#"(version: 1,
+        camera: (eye: (0.5, 2.0, 4.0), target: (0.0, 1.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 640, height: 360),
+        lights: [Directional(direction: (-0.5, -1.0, -0.6), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) },
+        shapes: {
+            "floor": Plane(Quad(half_size: (20.0, 20.0))),
+            "ball": Sphere(radius: 1.0),
+            "crate": Box(half_extents: (0.06, 0.06, 0.06)),
+        },
+        instances: [
+            (shape: "floor", material: "m"),
+            (shape: "ball", material: "m", transform: (translate: (0.0, 1.0, 0.0))),
+            (shape: "crate", material: "m", transform: (translate: (0.6, 1.55, 2.2))),
+            (shape: "ball", material: "m", transform: (translate: (-2.5, 0.5, -1.0), scale: (1.5, 0.5, 0.5))),
+            (shape: "ball", material: "m", transform: (translate: (30.0, 1.0, -30.0), rotate_deg: (20.0, 40.0, 0.0), scale: (0.5, 0.5, 0.5))),
+        ],
+    )"#;
+    let mut scene = Scene::from_ron_str(ron, "test.ron", std::path::Path::new(".")).unwrap();
+    scene.camera.focus_distance = Some(4.0);
+    scene.camera.aperture_radius = 0.1;
+    let order: Vec<usize> = (0..scene.instances.len()).collect();
+    let spheres = SceneAccel::build(&scene, &order).unwrap().exact_spheres();
+    assert_eq!(
+        spheres.iter().map(|s| s.instance).collect::<Vec<_>>(),
+        [1, 4],
+        "the round balls are exact spheres, the ellipsoid is not"
+    );
+    assert!((spheres[1].radius - 0.5).abs() < 1e-6, "{:?}", spheres[1]);
+    let near = check_smooth_claims(
+        &scene,
+        spheres[0],
+        &[
+            (Vec2::splat(0.5), Vec2::ZERO, 8, 1),
+            (Vec2::new(0.1, 0.9), Vec2::new(0.6, -0.8), 8, 1),
+            (Vec2::new(0.9, 0.3), Vec2::ZERO, 8, 3),
+            (Vec2::new(0.4, 0.6), Vec2::new(-1.0, 0.0), 16, 3),
+        ],
+    );
+    for (case, c) in near.iter().enumerate() {
+        assert!(
+            c.centre_claimed,
+            "case {case}: the tile at the near ball's centre"
+        );
+    }
+    for (case, c) in near[..2].iter().enumerate() {
+        assert!(
+            2 * c.claimed >= c.all_ball,
+            "case {case}: {} tiles claimed of {} that see only the near ball",
+            c.claimed,
+            c.all_ball
+        );
+    }
+
+    scene.camera.eye = Vec3::new(30.0, 1.2, -10.0);
+    scene.camera.target = Vec3::new(30.0, 1.0, -30.0);
+    scene.camera.fov_y_deg = 6.0;
+    scene.camera.aperture_radius = 0.0;
+    let far = check_smooth_claims(
+        &scene,
+        spheres[1],
+        &[
+            (Vec2::splat(0.5), Vec2::ZERO, 8, 1),
+            (Vec2::new(0.2, 0.7), Vec2::ZERO, 16, 8),
+        ],
+    );
+    for (case, c) in far.iter().enumerate() {
+        assert!(
+            c.centre_claimed,
+            "case {case}: the tile at the far ball's centre"
+        );
+    }
+
+    let cut = Scene::from_ron_str(
+        r#"(version: 1,
+        camera: (eye: (0.0, 0.0, 10.0), target: (-4.663, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 32.2, width: 720, height: 360),
+        lights: [Directional(direction: (-0.5, -1.0, -0.6), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) },
+        shapes: { "ball": Sphere(radius: 1.0) },
+        instances: [(shape: "ball", material: "m")],
+    )"#,
+        "cut.ron",
+        std::path::Path::new("."),
+    )
+    .unwrap();
+    let ball = SceneAccel::build(&cut, &[0]).unwrap().exact_spheres()[0];
+    // The premise: some pixel's ray starts inside the ball and meets its
+    // far side, whose normal faces away from the eye.
+    let size = (cut.camera.width, cut.camera.height);
+    let depth = depth_range(&cut.camera, cut.bounds());
+    let cam = sample_camera(&cut.camera, size, Vec2::splat(0.5), Vec2::ZERO, depth);
+    let accel = SceneAccel::build(&cut, &[0]).unwrap();
+    let inside = (0..size.0 * size.1).any(|i| {
+        let (o, d) = kernel_ray(cam.clip_from_world, size, i % size.0, i / size.0);
+        (accel.closest_hit(o, d, 0.0, f32::INFINITY).hit).is_some_and(|h| h.geometric.dot(d) > 0.0)
+    });
+    assert!(inside, "the near plane cuts the ball");
+    let claims = check_smooth_claims(&cut, ball, &[(Vec2::splat(0.5), Vec2::ZERO, 8, 1)]);
+    assert_eq!(claims[0].claimed, 0, "tiles of a ball the near plane cuts");
 }

@@ -716,9 +716,9 @@ fn outlined_sphere(w: u32, h: u32, outline_px: f32) -> String {
 /// px across here).
 /// A ball rests on a floor (which no ray meets before the ball's visible
 /// cap), a small crate hides part of it, and the cow stands beside it (a
-/// rasterized mesh in hybrid mode). Outlines 1.5 px (search radius 1, 8
-/// px tiles) and 4 px (radius 4, 16 px tiles), in raytrace and hybrid
-/// mode.
+/// rasterized mesh in hybrid mode), seen through a small lens (each
+/// sample's eye a point on it). Outlines 1.5 px (search radius 1, 8 px
+/// tiles) and 4 px (radius 4, 16 px tiles), in raytrace and hybrid mode.
 #[test]
 fn tiles_the_cpu_proves_the_smooth_inside_of_a_sphere_give_the_same_image() {
     use celray::gpu::twins::{OUTLINE_MARK_SEARCH, TILE_TRACE_ACCUMULATES, TRACE_WORKGROUP};
@@ -726,7 +726,8 @@ fn tiles_the_cpu_proves_the_smooth_inside_of_a_sphere_give_the_same_image() {
     for width in [1.5, 4.0] {
         let ball = scene(&format!(
             r#"(version: 1,
-            camera: (eye: (0.5, 2.0, 4.0), target: (0.0, 1.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 384, height: 216),
+            camera: (eye: (0.5, 2.0, 4.0), target: (0.0, 1.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 384, height: 216,
+                     aperture_radius: 0.03, focus_distance: 4.0),
             lights: [Directional(direction: (-0.5, -1.0, -0.6), color: (1.0, 1.0, 1.0), intensity: 1.0)],
             materials: {{
                 "floor": (base_color: (0.6, 0.6, 0.6), model: Toon(bands: 3), outline_width_px: 0.0),

@@ -404,8 +404,9 @@ impl SmoothSteps {
 ///   da = D sin a (D cos a / (R cos i) - 1), which is not negative, and
 ///   f_max is the cone's largest angle with `forward`.
 ///
-/// A sphere seen from inside, a cone too wide, or a projection that is
-/// not a perspective one proves nothing.
+/// A sphere seen from inside or cut by the near plane (where the
+/// kernel's rays start), a cone too wide, or a projection that is not a
+/// perspective one proves nothing.
 #[allow(clippy::too_many_arguments)]
 pub fn smooth_sphere_tiles(
     bounds: &[impl ScreenBound],
@@ -424,6 +425,12 @@ pub fn smooth_sphere_tiles(
         return out;
     };
     let forward = forward.as_dvec3().normalize();
+    // Primary rays start on the near plane (NDC z 0, a plane of constant
+    // view depth): a sphere it cuts shows its inside through the hole.
+    let near = {
+        let p = clip_from_world.as_dmat4().inverse() * DVec4::W;
+        (p.truncate() / p.w - eye).dot(forward)
+    };
     let (h, d) = (cones.half_angle, cones.pixel_angle);
     let (sin_h, cos_h) = h.sin_cos();
     // Per tile, the last sphere (index into `spheres`) for which some
@@ -435,7 +442,9 @@ pub fn smooth_sphere_tiles(
         let radius = f64::from(s.radius);
         let to_centre = c - eye;
         let distance = to_centre.length();
-        if distance.is_nan() || distance <= radius * 1.001 {
+        let nearest = to_centre.dot(forward) - radius;
+        let cut = nearest.is_nan() || nearest <= near * 1.001;
+        if distance.is_nan() || distance <= radius * 1.001 || cut {
             continue;
         }
         // A disc too small to hold a tile and its halo proves nothing, and

@@ -784,7 +784,7 @@ impl Renderer {
         let kernels = self.accumulate_kernels(&self.scene, &self.settings);
         let sources = kernels
             .outlines
-            .then(|| self.source_tiles_seen_by(&camera, kernels.tile_px, self.primary_mode()));
+            .then(|| self.source_tiles_seen_by(&camera, kernels.tile_px, mode));
         self.tiles_seen_by(
             camera.clip_from_world,
             mode,
