@@ -441,7 +441,7 @@ fn check_smooth_claims(
         let steps = SmoothSteps::for_radius(reach);
         let claimed = smooth_sphere_tiles(
             &accel.footprints,
-            &accel.exact_spheres(),
+            &accel.exact_spheres,
             cam.forward,
             cam.clip_from_world,
             size,
@@ -573,7 +573,7 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
     scene.camera.focus_distance = Some(4.0);
     scene.camera.aperture_radius = 0.1;
     let order: Vec<usize> = (0..scene.instances.len()).collect();
-    let spheres = SceneAccel::build(&scene, &order).unwrap().exact_spheres();
+    let spheres = SceneAccel::build(&scene, &order).unwrap().exact_spheres;
     assert_eq!(
         spheres.iter().map(|s| s.instance).collect::<Vec<_>>(),
         [1, 4],
@@ -636,7 +636,7 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
         std::path::Path::new("."),
     )
     .unwrap();
-    let ball = SceneAccel::build(&cut, &[0]).unwrap().exact_spheres()[0];
+    let ball = SceneAccel::build(&cut, &[0]).unwrap().exact_spheres[0];
     // The premise: some pixel's ray starts inside the ball and meets its
     // far side, whose normal faces away from the eye.
     let size = (cut.camera.width, cut.camera.height);

@@ -140,6 +140,10 @@ pub struct SceneAccel {
     /// (`screen_tiles::Footprint`): its world box and, for static spheres
     /// and CSG solids, a world sphere holding it ([`world_sphere`]).
     pub footprints: Vec<Footprint>,
+    /// The instances that are exactly spheres (`exact_spheres`), for the
+    /// outline tiles the CPU proves smooth
+    /// (`screen_tiles::smooth_sphere_tiles`).
+    pub exact_spheres: Vec<screen_tiles::ExactSphere>,
     /// Postfix programs of the CSG shapes (each ends with CSG_OP_END).
     pub csg_ops: Vec<GpuCsgOp>,
     pub csg_leaves: Vec<GpuCsgLeaf>,
@@ -185,36 +189,39 @@ pub fn world_sphere(shape: &GpuShape, world_from_object: Mat4) -> Option<glam::V
     )
 }
 
-impl SceneAccel {
-    /// The instances that are exactly spheres in the world
-    /// (`screen_tiles::ExactSphere`): static sphere shapes whose matrix is
-    /// a similarity (columns of one length and at right angles, to a
-    /// relative 1e-5), so that every hit the kernels find on them is a
-    /// hit on this sphere, up to f32 rounding.
-    pub fn exact_spheres(&self) -> Vec<screen_tiles::ExactSphere> {
-        self.instances
-            .iter()
-            .enumerate()
-            .filter(|&(k, &(_, _, shape))| {
-                self.shapes[shape as usize].kind == SHAPE_SPHERE && !self.moving[k]
+/// The instances that are exactly spheres in the world
+/// (`screen_tiles::ExactSphere`): static spheres (those whose footprint
+/// has a [`world_sphere`]) whose matrix is a similarity (columns of one
+/// length and at right angles, to a relative 1e-5), so that their world
+/// sphere is the surface itself and every hit the kernels find on them
+/// is a hit on it, up to f32 rounding.
+fn exact_spheres(
+    shapes: &[GpuShape],
+    instances: &[(Mat4, Mat4, u32)],
+    footprints: &[Footprint],
+) -> Vec<screen_tiles::ExactSphere> {
+    instances
+        .iter()
+        .zip(footprints)
+        .enumerate()
+        .filter(|(_, (&(_, _, shape), _))| shapes[shape as usize].kind == SHAPE_SPHERE)
+        .filter_map(|(k, (&(world_from_object, _, _), footprint))| {
+            let sphere = footprint.sphere?;
+            let m = glam::Mat3::from_mat4(world_from_object);
+            let cols = [m.x_axis, m.y_axis, m.z_axis];
+            let scale2 = m.x_axis.length_squared();
+            let tol = 1e-5 * scale2;
+            let similar = (0..3).all(|a| {
+                (cols[a].length_squared() - scale2).abs() <= tol
+                    && cols[a].dot(cols[(a + 1) % 3]).abs() <= tol
+            });
+            (similar && scale2 > 0.0).then(|| screen_tiles::ExactSphere {
+                instance: k,
+                centre: sphere.truncate(),
+                radius: sphere.w,
             })
-            .filter_map(|(k, &(world_from_object, _, shape))| {
-                let m = glam::Mat3::from_mat4(world_from_object);
-                let cols = [m.x_axis, m.y_axis, m.z_axis];
-                let scale = m.x_axis.length();
-                let tol = 1e-5 * scale * scale;
-                let similar = (0..3).all(|a| {
-                    (cols[a].length_squared() - scale * scale).abs() <= tol
-                        && cols[a].dot(cols[(a + 1) % 3]).abs() <= tol
-                });
-                (similar && scale > 0.0).then(|| screen_tiles::ExactSphere {
-                    instance: k,
-                    centre: world_from_object.transform_point3(Vec3::ZERO),
-                    radius: self.shapes[shape as usize].params[0] * scale,
-                })
-            })
-            .collect()
-    }
+        })
+        .collect()
 }
 
 /// Builds a mesh's bottom-level BVH, appending its nodes (child indices
@@ -396,7 +403,8 @@ impl SceneAccel {
                     sphere: sphere.filter(|_| !moving[k]),
                 }
             })
-            .collect();
+            .collect::<Vec<_>>();
+        let exact_spheres = exact_spheres(&shapes, &instances, &footprints);
         let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
         // One stack serves both levels, holding at most one entry per level
         // of the top-level path plus one per level of a mesh's path.
@@ -449,6 +457,7 @@ impl SceneAccel {
             world_bounds,
             moving,
             footprints,
+            exact_spheres,
             csg_ops,
             triangle_sources,
             csg_leaves,

@@ -782,9 +782,14 @@ impl Renderer {
     pub fn primary_tiles(&self, k: u32, mode: RenderMode) -> Vec<u32> {
         let camera = self.camera_for(&self.sample_schedule().sample(k));
         let kernels = self.accumulate_kernels(&self.scene, &self.settings);
-        let sources = kernels
-            .outlines
-            .then(|| self.source_tiles_seen_by(&camera, kernels.tile_px, mode));
+        let sources = kernels.outlines.then(|| {
+            self.source_tiles_seen_by(
+                camera.clip_from_world,
+                camera.forward,
+                kernels.tile_px,
+                mode,
+            )
+        });
         self.tiles_seen_by(
             camera.clip_from_world,
             mode,
@@ -861,7 +866,8 @@ impl Renderer {
     }
 
     /// Per accumulate tile of `tile_px`, 1 where a pixel of it may take an
-    /// outline in the sample of `camera` with primary mode `mode`: an
+    /// outline in the sample whose projection is `clip_from_world` (view
+    /// direction `forward`) with primary mode `mode`: an
     /// instance whose outline reaches other pixels may show within the
     /// outline radius of it (`accel::screen_tiles::reached_tiles`), unless
     /// (traced primary hits only) the CPU proves the tile and its halo the
@@ -872,7 +878,8 @@ impl Renderer {
     /// reads it saves.
     fn source_tiles_seen_by(
         &self,
-        camera: &camera::SampleCamera,
+        clip_from_world: glam::Mat4,
+        forward: glam::Vec3,
         tile_px: u32,
         mode: RenderMode,
     ) -> Vec<u32> {
@@ -889,7 +896,7 @@ impl Renderer {
         let mut tiles = screen_tiles::reached_tiles(
             &accel.footprints,
             |k| scene.materials[scene.instances[order[k]].material].outline_width_px >= 1.0,
-            camera.clip_from_world,
+            clip_from_world,
             size,
             tile_px,
             reach,
@@ -899,9 +906,9 @@ impl Renderer {
         if mode != RenderMode::Raster && self.smooth_spheres {
             let smooth = screen_tiles::smooth_sphere_tiles(
                 &accel.footprints,
-                &accel.exact_spheres(),
-                camera.forward,
-                camera.clip_from_world,
+                &accel.exact_spheres,
+                forward,
+                clip_from_world,
                 size,
                 tile_px,
                 reach,
@@ -947,10 +954,9 @@ impl Renderer {
         let (outlines, tile_px) = (kernels.outlines, kernels.tile_px);
         // The sample's own projection, as the uniforms carry it.
         let clip_from_world = glam::Mat4::from_cols_array_2d(&uniforms.clip_from_world);
-        let sources = outlines.then(|| {
-            let camera = self.camera_for(&self.sample_schedule().sample(k));
-            self.source_tiles_seen_by(&camera, tile_px, mode)
-        });
+        let forward = glam::Vec3::from_slice(&uniforms.view_forward[..3]);
+        let sources =
+            outlines.then(|| self.source_tiles_seen_by(clip_from_world, forward, tile_px, mode));
         // Where the trace pass reads tiles, it adds the colour of those no
         // outline reaches to the accumulator itself (every tile without
         // outlines): the accumulate pass would only copy it there.
