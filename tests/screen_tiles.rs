@@ -419,9 +419,11 @@ struct Claims {
 /// its halo (the CPU tracer, the kernel's twin) the closest hit is the
 /// ball, and between every two neighbouring pixels there the view depth
 /// changes its log by at most half of `SmoothSteps::ln_depth` and the
-/// normal turns by at most half of `SmoothSteps::angle`.
+/// normal turns by at most half of `SmoothSteps::angle`. `depth` is the
+/// near and far planes, `depth_range`'s where `None`.
 fn check_smooth_claims(
     scene: &Scene,
+    depth: Option<(f32, f32)>,
     ball: celray::accel::screen_tiles::ExactSphere,
     cases: &[(Vec2, Vec2, u32, u32)],
 ) -> Vec<Claims> {
@@ -436,7 +438,7 @@ fn check_smooth_claims(
             all_ball: 0,
             centre_claimed: false,
         };
-        let depth = depth_range(&scene.camera, scene.bounds());
+        let depth = depth.unwrap_or_else(|| depth_range(&scene.camera, scene.bounds()));
         let cam = sample_camera(&scene.camera, size, shift, lens, depth);
         let steps = SmoothSteps::for_radius(reach);
         let claimed = smooth_sphere_tiles(
@@ -582,6 +584,7 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
     assert!((spheres[1].radius - 0.5).abs() < 1e-6, "{:?}", spheres[1]);
     let near = check_smooth_claims(
         &scene,
+        None,
         spheres[0],
         &[
             (Vec2::splat(0.5), Vec2::ZERO, 8, 1),
@@ -611,6 +614,7 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
     scene.camera.aperture_radius = 0.0;
     let far = check_smooth_claims(
         &scene,
+        None,
         spheres[1],
         &[
             (Vec2::splat(0.5), Vec2::ZERO, 8, 1),
@@ -637,17 +641,33 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
     )
     .unwrap();
     let ball = SceneAccel::build(&cut, &[0]).unwrap().exact_spheres[0];
-    // The premise: some pixel's ray starts inside the ball and meets its
-    // far side, whose normal faces away from the eye.
+    // `depth_range` keeps every object beyond the near plane, so this case
+    // sets its own: 8.95, the distance to the ball's centre less 1.05
+    // radii, through the ball, whose nearest view depth is
+    // 10 cos 25 - 1 = 8.06. The premise: some pixel's ray starts inside
+    // the ball and meets its far side, whose normal faces away from the
+    // eye.
     let size = (cut.camera.width, cut.camera.height);
-    let depth = depth_range(&cut.camera, cut.bounds());
-    let cam = sample_camera(&cut.camera, size, Vec2::splat(0.5), Vec2::ZERO, depth);
+    let depth = (8.95, depth_range(&cut.camera, cut.bounds()).1);
     let accel = SceneAccel::build(&cut, &[0]).unwrap();
-    let inside = (0..size.0 * size.1).any(|i| {
-        let (o, d) = kernel_ray(cam.clip_from_world, size, i % size.0, i / size.0);
-        (accel.closest_hit(o, d, 0.0, f32::INFINITY).hit).is_some_and(|h| h.geometric.dot(d) > 0.0)
-    });
-    assert!(inside, "the near plane cuts the ball");
-    let claims = check_smooth_claims(&cut, ball, &[(Vec2::splat(0.5), Vec2::ZERO, 8, 1)]);
+    let starts_inside = |depth: (f32, f32)| {
+        let cam = sample_camera(&cut.camera, size, Vec2::splat(0.5), Vec2::ZERO, depth);
+        (0..size.0 * size.1).any(|i| {
+            let (o, d) = kernel_ray(cam.clip_from_world, size, i % size.0, i / size.0);
+            (accel.closest_hit(o, d, 0.0, f32::INFINITY).hit)
+                .is_some_and(|h| h.geometric.dot(d) > 0.0)
+        })
+    };
+    assert!(starts_inside(depth), "the near plane cuts the ball");
+    assert!(
+        !starts_inside(depth_range(&cut.camera, cut.bounds())),
+        "depth_range's near plane cuts the ball"
+    );
+    let claims = check_smooth_claims(
+        &cut,
+        Some(depth),
+        ball,
+        &[(Vec2::splat(0.5), Vec2::ZERO, 8, 1)],
+    );
     assert_eq!(claims[0].claimed, 0, "tiles of a ball the near plane cuts");
 }

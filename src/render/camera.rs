@@ -14,11 +14,20 @@ pub struct SampleCamera {
 }
 
 /// Near and far planes that enclose a scene with these world bounds.
+///
+/// Both are view depths, distances along the view direction, and the
+/// bounds' sphere (widened by 5%) lies between them. The near plane is the
+/// sphere's nearest view depth, `dot(centre - eye, forward) - radius`, not
+/// its nearest distance `|centre - eye| - radius`: for a scene off the view
+/// axis the second is larger and the near plane would cut it (the kernel's
+/// primary rays start on that plane). The far plane, the farthest distance,
+/// is never nearer than the farthest view depth.
 pub fn depth_range(camera: &Camera, bounds: (Vec3, Vec3)) -> (f32, f32) {
     let centre = (bounds.0 + bounds.1) * 0.5;
     let radius = ((bounds.1 - bounds.0) * 0.5).length().max(1e-3);
+    let forward = (camera.target - camera.eye).normalize();
     let far = (camera.eye - centre).length() + radius * 1.05 + 1e-3;
-    let near = ((camera.eye - centre).length() - radius * 1.05).max(far * 1e-4);
+    let near = ((centre - camera.eye).dot(forward) - radius * 1.05).max(far * 1e-4);
     (near, far)
 }
 
@@ -100,5 +109,69 @@ impl SampleCamera {
         let near = world_from_clip.project_point3(ndc.extend(0.0));
         let far = world_from_clip.project_point3(ndc.extend(1.0));
         (near.as_vec3(), (far - near).normalize().as_vec3())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every corner of the bounds lies between the near and far planes, as
+    /// a view depth, for cameras that look at the bounds head on, from
+    /// beside them and from inside them. The off-axis cameras are the
+    /// case a distance-based near plane gets wrong: a unit ball 10 away
+    /// and 25 degrees off the view axis has its nearest view depth at
+    /// 10 cos 25 - 1 = 8.06, inside |centre - eye| - 1.05 = 8.95.
+    #[test]
+    fn the_depth_range_holds_the_bounds_off_the_view_axis() {
+        let bounds = (Vec3::splat(-1.0), Vec3::splat(1.0));
+        let corners = (0..8).map(|i| {
+            Vec3::new(
+                if i & 1 == 0 { -1.0 } else { 1.0 },
+                if i & 2 == 0 { -1.0 } else { 1.0 },
+                if i & 4 == 0 { -1.0 } else { 1.0 },
+            )
+        });
+        let corners: Vec<Vec3> = corners.collect();
+        for (eye, off_axis_deg) in [
+            (Vec3::new(0.0, 0.0, 10.0), 0.0f32),
+            (Vec3::new(0.0, 0.0, 10.0), 25.0),
+            (Vec3::new(3.0, 4.0, 5.0), 60.0),
+            (Vec3::new(0.0, 0.0, 3.0), 80.0),
+            (Vec3::new(0.2, 0.1, 0.3), 30.0),
+        ] {
+            let to_centre = -eye.normalize();
+            let turn = glam::Quat::from_axis_angle(Vec3::Y, off_axis_deg.to_radians());
+            let forward = turn * to_centre;
+            let camera = Camera {
+                eye,
+                target: eye + forward,
+                up: Vec3::Y,
+                fov_y_deg: 40.0,
+                width: 64,
+                height: 64,
+                aperture_radius: 0.0,
+                focus_distance: None,
+                aperture: crate::scene::ApertureShape::Disk,
+                shutter_open_s: 0.0,
+                shutter_close_s: 0.0,
+                eye_end: None,
+                target_end: None,
+            };
+            let (near, far) = depth_range(&camera, bounds);
+            assert!(
+                0.0 < near && near < far,
+                "{eye} {off_axis_deg}: {near} {far}"
+            );
+            for &c in &corners {
+                let depth = (c - eye).dot(forward);
+                if depth > 0.0 {
+                    assert!(
+                        near <= depth && depth <= far,
+                        "eye {eye}, {off_axis_deg} degrees off axis: corner {c} at view depth {depth} outside [{near}, {far}]"
+                    );
+                }
+            }
+        }
     }
 }
