@@ -127,6 +127,7 @@ impl ApplicationHandler<AppEvent> for WindowApp {
         let Some(live) = &mut self.live else { return };
         let AppEvent::FilesChanged(what) = event;
         live.reload.changed(what);
+        live.ui_input = true;
     }
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
@@ -136,6 +137,7 @@ impl ApplicationHandler<AppEvent> for WindowApp {
         match live.reload.due(now) {
             Ok(Some(reload)) => {
                 live.reload(reload, &self.proxy);
+                live.ui_input = true;
                 live.surface.window.request_redraw();
             }
             Ok(None) => {}
@@ -159,6 +161,9 @@ impl ApplicationHandler<AppEvent> for WindowApp {
         let Some(live) = &mut self.live else { return };
         let window = live.surface.window.clone();
         let response = live.overlay.state.on_window_event(&window, &event);
+        if !matches!(event, WindowEvent::RedrawRequested) {
+            live.ui_input = true;
+        }
         if response.repaint {
             window.request_redraw();
         }

@@ -35,6 +35,47 @@ struct RunLimits {
     keep_times: bool,
 }
 
+/// How long the panel may show the same figures (frame time, samples)
+/// while no input arrives: the UI runs again at least this often. Between
+/// runs a frame draws the last run's shapes again, which spares egui's CPU
+/// work (its UI and tessellation, about 2 ms a frame on lavapipe's
+/// 2-core machines) that runs before the frame's sample is submitted.
+const UI_REFRESH: Duration = Duration::from_millis(250);
+
+/// What the UI draws of the views: their egui textures and which still
+/// compile their first pipelines.
+#[derive(PartialEq, Debug)]
+struct ViewsSeen {
+    textures: Vec<Option<egui::TextureId>>,
+    compiling: Vec<bool>,
+}
+
+/// The last run of the UI, drawn again while nothing changes it.
+struct UiRun {
+    frame: OverlayFrame,
+    /// The view area it laid out, without its click.
+    area: ViewArea,
+    at: Instant,
+    views: ViewsSeen,
+}
+
+/// Whether the UI must run again, `since` its `last` run: input arrived
+/// since (`input`), an error is shown, egui asked to run again by now, the
+/// views changed what the UI draws of them, or its figures are
+/// [`UI_REFRESH`] old.
+fn ui_due(
+    last: Option<&UiRun>,
+    since: Duration,
+    input: bool,
+    error: bool,
+    views: &ViewsSeen,
+) -> bool {
+    let Some(last) = last else {
+        return true;
+    };
+    input || error || since >= UI_REFRESH.min(last.frame.repaint_delay) || last.views != *views
+}
+
 /// The state of a running window.
 pub(super) struct LiveApp {
     pub surface: WindowSurface,
@@ -59,6 +100,9 @@ pub(super) struct LiveApp {
     /// When the app started, and how its first frames went.
     started: Instant,
     startup: Startup,
+    /// The UI's last run, and whether input arrived since.
+    last_ui: Option<UiRun>,
+    pub ui_input: bool,
 }
 
 impl LiveApp {
@@ -106,6 +150,8 @@ impl LiveApp {
             },
             started,
             startup: Startup::default(),
+            last_ui: None,
+            ui_input: true,
         };
         if o.watch {
             live.rewatch(proxy);
@@ -160,7 +206,7 @@ impl LiveApp {
         self.fly();
         let vsync_before = self.model.vsync;
         let ui_start = Instant::now();
-        let (ui, area) = self.run_ui();
+        let (ui, area) = self.run_ui_when_due();
         let mut ui_ms = ui_start.elapsed().as_secs_f64() * 1e3;
         self.apply_edits(&area, ui.pixels_per_point, vsync_before);
         let sampled = self.sample_views();
@@ -209,6 +255,38 @@ impl LiveApp {
         if m.nav == NavMode::Fly && m.move_keys.any() {
             m.scene.camera =
                 controller::fly(&m.scene.camera, m.world_up, m.move_keys, m.fly_speed, dt);
+        }
+    }
+
+    /// The UI when it is due ([`ui_due`]); else the last run's shapes and
+    /// view area again.
+    fn run_ui_when_due(&mut self) -> (OverlayFrame, ViewArea) {
+        let views = self.views_seen();
+        let last = self.last_ui.as_ref();
+        let since = last.map_or(Duration::ZERO, |l| l.at.elapsed());
+        let error = self.model.error.is_some();
+        if let Some(last) = last.filter(|l| !ui_due(Some(l), since, self.ui_input, error, &views)) {
+            return (last.frame.again(), last.area.clone());
+        }
+        let at = Instant::now();
+        let (frame, area) = self.run_ui();
+        self.ui_input = false;
+        self.last_ui = Some(UiRun {
+            frame: frame.again(),
+            area: ViewArea {
+                click: None,
+                ..area.clone()
+            },
+            at,
+            views: self.views_seen(),
+        });
+        (frame, area)
+    }
+
+    fn views_seen(&self) -> ViewsSeen {
+        ViewsSeen {
+            textures: self.views.texture_ids(),
+            compiling: (self.views).compiling_first(self.model.layout.view_count()),
         }
     }
 
@@ -489,5 +567,74 @@ impl LiveApp {
             }
             Err(e) => self.model.error = Some(e),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn views(compiling: bool) -> ViewsSeen {
+        ViewsSeen {
+            textures: vec![None],
+            compiling: vec![compiling],
+        }
+    }
+
+    fn run(repaint_delay: Duration) -> UiRun {
+        UiRun {
+            frame: OverlayFrame::empty(repaint_delay),
+            area: ViewArea {
+                rects: Vec::new(),
+                click: None,
+            },
+            at: Instant::now(),
+            views: views(false),
+        }
+    }
+
+    /// The UI runs on its first frame, on input, while an error shows, when
+    /// egui's repaint delay or the refresh period has passed and when the
+    /// views change; a frame with none of these draws the last run again.
+    #[test]
+    fn the_ui_runs_again_only_when_something_can_change_it() {
+        let idle = run(Duration::MAX);
+        let short = Duration::from_millis(10);
+        let seen = views(false);
+        assert!(ui_due(None, Duration::ZERO, false, false, &seen));
+        assert!(!ui_due(Some(&idle), short, false, false, &seen));
+        assert!(!ui_due(
+            Some(&idle),
+            UI_REFRESH - short,
+            false,
+            false,
+            &seen
+        ));
+        assert!(ui_due(Some(&idle), UI_REFRESH, false, false, &seen));
+        assert!(ui_due(Some(&idle), short, true, false, &seen));
+        assert!(ui_due(Some(&idle), short, false, true, &seen));
+        assert!(ui_due(Some(&idle), short, false, false, &views(true)));
+        let moved = ViewsSeen {
+            textures: vec![Some(egui::TextureId::User(7))],
+            compiling: vec![false],
+        };
+        assert!(ui_due(Some(&idle), short, false, false, &moved));
+        // egui asked for another run within the refresh period.
+        let animating = run(Duration::from_millis(5));
+        assert!(!ui_due(
+            Some(&animating),
+            Duration::from_millis(4),
+            false,
+            false,
+            &seen
+        ));
+        assert!(ui_due(Some(&animating), short, false, false, &seen));
+        assert!(ui_due(
+            Some(&run(Duration::ZERO)),
+            Duration::ZERO,
+            false,
+            false,
+            &seen
+        ));
     }
 }

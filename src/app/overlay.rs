@@ -12,6 +12,9 @@ pub(super) struct Overlay {
     pub ctx: egui::Context,
     pub state: egui_winit::State,
     pub renderer: egui_wgpu::Renderer,
+    /// The paint jobs last tessellated and uploaded into `renderer`'s
+    /// buffers, and the surface size they were uploaded for.
+    last_paint: Option<(Vec<egui::ClippedPrimitive>, [u32; 2])>,
 }
 
 /// egui's part of a frame, ready to draw.
@@ -32,6 +35,36 @@ pub(super) struct OverlayFrame {
     to_free: Vec<egui::TextureId>,
     /// When egui wants to be drawn again.
     pub repaint_delay: Duration,
+    /// The last frame's paint jobs again, instead of `shapes`.
+    again: bool,
+}
+
+impl OverlayFrame {
+    /// The same frame drawn again: [`Overlay::prepare`] draws the paint
+    /// jobs it last tessellated and uploaded, and nothing is left to free
+    /// (the run that made them freed its textures).
+    pub fn again(&self) -> OverlayFrame {
+        OverlayFrame {
+            shapes: Vec::new(),
+            pixels_per_point: self.pixels_per_point,
+            to_free: Vec::new(),
+            repaint_delay: self.repaint_delay,
+            again: true,
+        }
+    }
+
+    /// A frame with no shapes that asks to be drawn again after
+    /// `repaint_delay`.
+    #[cfg(test)]
+    pub fn empty(repaint_delay: Duration) -> OverlayFrame {
+        OverlayFrame {
+            shapes: Vec::new(),
+            pixels_per_point: 1.0,
+            to_free: Vec::new(),
+            repaint_delay,
+            again: false,
+        }
+    }
 }
 
 /// An [`OverlayFrame`] tessellated and uploaded, ready to draw.
@@ -43,6 +76,30 @@ pub(super) struct OverlayPaint {
     to_free: Vec<egui::TextureId>,
     /// The window's clear colour ([`background`]).
     pub background: wgpu::Color,
+}
+
+/// The paint jobs of `shapes` on `screen`, tessellated and uploaded into
+/// `renderer`'s buffers, and the command buffers egui's callbacks recorded;
+/// `last` is the last upload. Drawn `again` on a screen of the same size,
+/// the last upload's jobs, which the buffers still hold.
+fn paint(
+    ctx: &egui::Context,
+    renderer: &mut egui_wgpu::Renderer,
+    last: &mut Option<(Vec<egui::ClippedPrimitive>, [u32; 2])>,
+    (gpu, encoder): (&Gpu, &mut wgpu::CommandEncoder),
+    shapes: Vec<egui::epaint::ClippedShape>,
+    again: bool,
+    screen: &egui_wgpu::ScreenDescriptor,
+) -> (Vec<egui::ClippedPrimitive>, Vec<wgpu::CommandBuffer>) {
+    match last {
+        Some((jobs, size)) if again && *size == screen.size_in_pixels => (jobs.clone(), Vec::new()),
+        _ => {
+            let jobs = ctx.tessellate(shapes, screen.pixels_per_point);
+            let extra = renderer.update_buffers(&gpu.device, &gpu.queue, encoder, &jobs, screen);
+            *last = Some((jobs.clone(), screen.size_in_pixels));
+            (jobs, extra)
+        }
+    }
 }
 
 /// The side panel's frame: the theme's, without its fill. The window is
@@ -86,6 +143,7 @@ impl Overlay {
             ctx,
             state,
             renderer,
+            last_paint: None,
         }
     }
 
@@ -119,11 +177,14 @@ impl Overlay {
             pixels_per_point: full.pixels_per_point,
             to_free,
             repaint_delay,
+            again: false,
         }
     }
 
     /// Tessellates `frame` for a surface of `size_px` and records the
-    /// upload of its buffers into `encoder`.
+    /// upload of its buffers into `encoder`; a frame drawn [`again`]
+    /// (OverlayFrame::again) on a surface of the same size reuses the last
+    /// upload, which the renderer's buffers still hold.
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
@@ -132,14 +193,19 @@ impl Overlay {
         size_px: [u32; 2],
     ) -> OverlayPaint {
         let ppp = frame.pixels_per_point;
-        let paint_jobs = self.ctx.tessellate(frame.shapes, ppp);
         let screen = egui_wgpu::ScreenDescriptor {
             size_in_pixels: size_px,
             pixels_per_point: ppp,
         };
-        let extra =
-            self.renderer
-                .update_buffers(&gpu.device, &gpu.queue, encoder, &paint_jobs, &screen);
+        let (paint_jobs, extra) = paint(
+            &self.ctx,
+            &mut self.renderer,
+            &mut self.last_paint,
+            (gpu, encoder),
+            frame.shapes,
+            frame.again,
+            &screen,
+        );
         OverlayPaint {
             paint_jobs,
             screen,
@@ -154,5 +220,98 @@ impl Overlay {
         for id in &paint.to_free {
             self.renderer.free_texture(id);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::AdapterChoice;
+
+    /// A frame drawn again from the last upload shows the same pixels as
+    /// its first draw, text included, though it is neither tessellated nor
+    /// uploaded again.
+    #[test]
+    fn a_frame_drawn_again_shows_the_same_pixels() {
+        let gpu = Gpu::new_headless(&AdapterChoice::for_tests()).unwrap();
+        let format = wgpu::TextureFormat::Rgba8Unorm;
+        let mut renderer =
+            egui_wgpu::Renderer::new(&gpu.device, format, egui_wgpu::RendererOptions::default());
+        let ctx = egui::Context::default();
+        let size = [160u32, 48];
+        let raw = egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(
+                egui::Pos2::ZERO,
+                egui::vec2(size[0] as f32, size[1] as f32),
+            )),
+            ..Default::default()
+        };
+        let mut full = ctx.run_ui(raw, |ui| {
+            ui.label("celray 1234");
+        });
+        for (id, deltas) in full.textures_delta.set.drain() {
+            for delta in &deltas {
+                renderer.update_texture(&gpu.device, &gpu.queue, id, delta);
+            }
+        }
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: size,
+            pixels_per_point: 1.0,
+        };
+        let mut last = None;
+        let mut draw = |shapes: Vec<egui::epaint::ClippedShape>, again: bool| {
+            let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("overlay test"),
+                size: wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let (jobs, _) = paint(
+                &ctx,
+                &mut renderer,
+                &mut last,
+                (&gpu, &mut encoder),
+                shapes,
+                again,
+                &screen,
+            );
+            let view = target.create_view(&Default::default());
+            let mut pass = encoder
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("overlay test"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                })
+                .forget_lifetime();
+            renderer.render(&mut pass, &jobs, &screen);
+            drop(pass);
+            gpu.queue.submit([encoder.finish()]);
+            super::super::surface::read_rgba8(&gpu, &target, format).unwrap()
+        };
+        let first = draw(full.shapes, false);
+        let again = draw(Vec::new(), true);
+        let lit = first.chunks_exact(4).filter(|p| p[0] > 100).count();
+        assert!(lit > 20, "the label drew {lit} light pixels");
+        assert!(first == again, "the frame drawn again differs");
     }
 }

@@ -10,6 +10,7 @@ use super::model::Model;
 use crate::view::settings_label;
 
 /// What the view area's UI gave this frame.
+#[derive(Clone)]
 pub(super) struct ViewArea {
     /// Each shown view's rectangle, in points.
     pub rects: Vec<Rect>,
