@@ -79,22 +79,9 @@ fn run_celray_env(
     cwd: &Path,
     env: &[(&str, &str)],
 ) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_celray"));
-    cmd.envs(env.iter().copied());
-    cmd.args(args)
-        .current_dir(cwd)
-        .env_remove("WAYLAND_DISPLAY")
-        .env("NODEVICE_SELECT", "1")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
-    match display {
-        Some(d) => cmd.env("DISPLAY", d),
-        None => cmd.env_remove("DISPLAY"),
-    };
-    if std::env::var_os("CELRAY_ADAPTER").is_none() {
-        cmd.env("CELRAY_ADAPTER", "software");
-    }
-    let mut child = cmd.spawn().expect("run celray");
+    let mut child = celray_command(args, display, cwd, env)
+        .spawn()
+        .expect("run celray");
     let deadline = Instant::now() + Duration::from_secs(300);
     loop {
         if child.try_wait().expect("wait for celray").is_some() {
@@ -110,6 +97,101 @@ fn run_celray_env(
         }
         std::thread::sleep(Duration::from_millis(50));
     }
+}
+
+/// The celray command, on `display` (none: no display at all), the
+/// software adapter unless CELRAY_ADAPTER says otherwise.
+fn celray_command(
+    args: &[&str],
+    display: Option<&str>,
+    cwd: &Path,
+    env: &[(&str, &str)],
+) -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_celray"));
+    cmd.envs(env.iter().copied());
+    cmd.args(args)
+        .current_dir(cwd)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("NODEVICE_SELECT", "1")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    match display {
+        Some(d) => cmd.env("DISPLAY", d),
+        None => cmd.env_remove("DISPLAY"),
+    };
+    if std::env::var_os("CELRAY_ADAPTER").is_none() {
+        cmd.env("CELRAY_ADAPTER", "software");
+    }
+    cmd
+}
+
+/// CPU time (user + system) process `pid` has used, in clock ticks
+/// (`/proc/PID/stat` fields 14 and 15).
+fn cpu_ticks(pid: u32) -> Option<u64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // The fields after the command name, which is in parentheses: the
+    // state is field 3, so utime (14) and stime (15) are 11 and 12 here.
+    let rest: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    Some(rest.get(11)?.parse::<u64>().ok()? + rest.get(12)?.parse::<u64>().ok()?)
+}
+
+/// Once its views have converged and nothing moves, the window draws no
+/// more frames, so the process stops using the CPU. egui-winit answers
+/// every redraw request with `repaint`, and redrawing on that kept a
+/// converged window drawing at full speed (about 1.2 CPU-seconds a
+/// second). The bound: under 15 clock ticks (0.15 s at Linux's 100 a
+/// second) in 3 s, a twentieth of one core, where a drawing window uses
+/// more than a core.
+#[test]
+fn a_converged_window_goes_idle() {
+    let x = start_xvfb();
+    let dir = scratch("idle");
+    let args = [
+        "view",
+        "--width",
+        "320",
+        "--height",
+        "180",
+        "--spp",
+        "2",
+        "--no-watch",
+    ];
+    let mut child = celray_command(&args, Some(&x.display), &dir, &[])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("run celray");
+    let pid = child.id();
+    let deadline = Instant::now() + Duration::from_secs(180);
+    let mut samples: Vec<(Instant, u64)> = Vec::new();
+    let idle = loop {
+        std::thread::sleep(Duration::from_millis(250));
+        if let Some(status) = child.try_wait().expect("wait for celray") {
+            panic!("celray view exited by itself ({status})");
+        }
+        let now = Instant::now();
+        samples.push((now, cpu_ticks(pid).expect("read /proc/PID/stat")));
+        let window = samples
+            .iter()
+            .rev()
+            .find(|(at, _)| now.duration_since(*at) >= Duration::from_secs(3));
+        if let Some(&(_, before)) = window {
+            let used = samples.last().unwrap().1 - before;
+            if used < 15 {
+                break true;
+            }
+        }
+        if now > deadline {
+            break false;
+        }
+    };
+    let _ = child.kill();
+    let _ = child.wait();
+    let last: Vec<u64> = samples.iter().rev().take(13).map(|s| s.1).collect();
+    assert!(
+        idle,
+        "the converged window kept using the CPU: ticks every 0.25 s, newest first: {last:?}"
+    );
 }
 
 /// The views' pipelines are compiled ahead on the warm-up thread, which

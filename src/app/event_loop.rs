@@ -161,10 +161,9 @@ impl ApplicationHandler<AppEvent> for WindowApp {
         let Some(live) = &mut self.live else { return };
         let window = live.surface.window.clone();
         let response = live.overlay.state.on_window_event(&window, &event);
-        if !matches!(event, WindowEvent::RedrawRequested) {
-            live.ui_input = true;
-        }
-        if response.repaint {
+        let input = is_input(&event);
+        live.ui_input |= input;
+        if response.repaint && input {
             window.request_redraw();
         }
         match event {
@@ -200,6 +199,14 @@ impl ApplicationHandler<AppEvent> for WindowApp {
             _ => {}
         }
     }
+}
+
+/// Whether `event` is news for the UI: every window event but the redraw
+/// request itself. egui-winit answers a redraw request with `repaint`
+/// too; redrawing on that would draw frames forever, at full CPU, after
+/// the views converged.
+fn is_input(event: &WindowEvent) -> bool {
+    !matches!(event, WindowEvent::RedrawRequested)
 }
 
 fn numpad_digit(code: KeyCode) -> Option<u32> {

@@ -209,6 +209,7 @@ impl LiveApp {
         let (ui, area) = self.run_ui_when_due();
         let mut ui_ms = ui_start.elapsed().as_secs_f64() * 1e3;
         self.apply_edits(&area, ui.pixels_per_point, vsync_before);
+        let was_converging = self.views.converging();
         let sampled = self.sample_views();
         // Frames before every shown view draws (its first pipelines still
         // compiling ahead, render::warmup) are not counted: the frame count
@@ -242,6 +243,12 @@ impl LiveApp {
             return Ok(true);
         }
         self.schedule_next(repaint_delay, compiling_first);
+        if was_converging && !self.views.converging() {
+            // The views' last samples came after this frame's UI (which may
+            // be UI_REFRESH old): one more frame shows the final figures.
+            self.ui_input = true;
+            self.surface.window.request_redraw();
+        }
         Ok(false)
     }
 
