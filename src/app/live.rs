@@ -42,12 +42,17 @@ struct RunLimits {
 /// 2-core machines) that runs before the frame's sample is submitted.
 const UI_REFRESH: Duration = Duration::from_millis(250);
 
-/// What the UI draws of the views: their egui textures and which still
-/// compile their first pipelines.
-#[derive(PartialEq, Debug)]
-struct ViewsSeen {
+/// What the UI shows of state it does not change itself: the views'
+/// egui textures, which still compile their first pipelines and how many
+/// warm up a change, the error and status lines, and the surface's size.
+#[derive(PartialEq, Debug, Default)]
+struct UiShown {
     textures: Vec<Option<egui::TextureId>>,
     compiling: Vec<bool>,
+    warming: usize,
+    error: Option<String>,
+    status: Option<String>,
+    size: [u32; 2],
 }
 
 /// The last run of the UI, drawn again while nothing changes it.
@@ -56,24 +61,20 @@ struct UiRun {
     /// The view area it laid out, without its click.
     area: ViewArea,
     at: Instant,
-    views: ViewsSeen,
+    shown: UiShown,
 }
 
 /// Whether the UI must run again, `since` its `last` run: input arrived
-/// since (`input`), an error is shown, egui asked to run again by now, the
-/// views changed what the UI draws of them, or its figures are
-/// [`UI_REFRESH`] old.
-fn ui_due(
-    last: Option<&UiRun>,
-    since: Duration,
-    input: bool,
-    error: bool,
-    views: &ViewsSeen,
-) -> bool {
+/// since (`input`), an error is shown, egui asked to run again by now,
+/// what it shows changed (`shown`), or its figures are [`UI_REFRESH`] old.
+fn ui_due(last: Option<&UiRun>, since: Duration, input: bool, shown: &UiShown) -> bool {
     let Some(last) = last else {
         return true;
     };
-    input || error || since >= UI_REFRESH.min(last.frame.repaint_delay) || last.views != *views
+    input
+        || shown.error.is_some()
+        || since >= UI_REFRESH.min(last.frame.repaint_delay)
+        || last.shown != *shown
 }
 
 /// The state of a running window.
@@ -249,6 +250,16 @@ impl LiveApp {
             self.ui_input = true;
             self.surface.window.request_redraw();
         }
+        if self
+            .last_ui
+            .as_ref()
+            .is_some_and(|l| l.shown != self.ui_shown())
+        {
+            // Something the UI shows changed after it ran (an error from
+            // applying its edits or from a sample, a warm-up's end): one
+            // more frame shows it, though nothing else would draw one.
+            self.surface.window.request_redraw();
+        }
         Ok(false)
     }
 
@@ -268,11 +279,14 @@ impl LiveApp {
     /// The UI when it is due ([`ui_due`]); else the last run's shapes and
     /// view area again.
     fn run_ui_when_due(&mut self) -> (OverlayFrame, ViewArea) {
-        let views = self.views_seen();
+        let shown = self.ui_shown();
         let last = self.last_ui.as_ref();
         let since = last.map_or(Duration::ZERO, |l| l.at.elapsed());
-        let error = self.model.error.is_some();
-        if let Some(last) = last.filter(|l| !ui_due(Some(l), since, self.ui_input, error, &views)) {
+        // The frame that ends a run (and may save the window) shows
+        // current figures.
+        let ending = (self.run.exit_after).is_some_and(|n| self.stats.frames + 1 >= n);
+        let input = self.ui_input || ending;
+        if let Some(last) = last.filter(|l| !ui_due(Some(l), since, input, &shown)) {
             return (last.frame.again(), last.area.clone());
         }
         let at = Instant::now();
@@ -285,15 +299,19 @@ impl LiveApp {
                 ..area.clone()
             },
             at,
-            views: self.views_seen(),
+            shown,
         });
         (frame, area)
     }
 
-    fn views_seen(&self) -> ViewsSeen {
-        ViewsSeen {
+    fn ui_shown(&self) -> UiShown {
+        UiShown {
             textures: self.views.texture_ids(),
             compiling: (self.views).compiling_first(self.model.layout.view_count()),
+            warming: self.views.warming(),
+            error: self.model.error.clone(),
+            status: self.model.status.clone(),
+            size: [self.surface.config.width, self.surface.config.height],
         }
     }
 
@@ -507,6 +525,13 @@ impl LiveApp {
         Ok(())
     }
 
+    /// Whether a camera path still has frames to drive: it counts window
+    /// frames, so its holds must not let the window idle.
+    fn path_moves(&self) -> bool {
+        (self.camera_path.as_ref())
+            .is_some_and(|(path, _)| self.stats.frames < u64::from(path.last_frame()))
+    }
+
     /// Keeps drawing while anything is moving or converging; else waits
     /// (until egui's `repaint_delay`, when it asked for one).
     fn schedule_next(&mut self, repaint_delay: Duration, compiling_first: bool) {
@@ -520,6 +545,7 @@ impl LiveApp {
             || flying
             || self.run.exit_after.is_some()
             || repaint_delay.is_zero()
+            || self.path_moves()
         {
             self.surface.window.request_redraw();
         } else if self.views.warming() > 0 {
@@ -581,10 +607,11 @@ impl LiveApp {
 mod tests {
     use super::*;
 
-    fn views(compiling: bool) -> ViewsSeen {
-        ViewsSeen {
+    fn shown(compiling: bool) -> UiShown {
+        UiShown {
             textures: vec![None],
             compiling: vec![compiling],
+            ..UiShown::default()
         }
     }
 
@@ -596,7 +623,7 @@ mod tests {
                 click: None,
             },
             at: Instant::now(),
-            views: views(false),
+            shown: shown(false),
         }
     }
 
@@ -607,39 +634,59 @@ mod tests {
     fn the_ui_runs_again_only_when_something_can_change_it() {
         let idle = run(Duration::MAX);
         let short = Duration::from_millis(10);
-        let seen = views(false);
-        assert!(ui_due(None, Duration::ZERO, false, false, &seen));
-        assert!(!ui_due(Some(&idle), short, false, false, &seen));
-        assert!(!ui_due(
-            Some(&idle),
-            UI_REFRESH - short,
-            false,
-            false,
-            &seen
-        ));
-        assert!(ui_due(Some(&idle), UI_REFRESH, false, false, &seen));
-        assert!(ui_due(Some(&idle), short, true, false, &seen));
-        assert!(ui_due(Some(&idle), short, false, true, &seen));
-        assert!(ui_due(Some(&idle), short, false, false, &views(true)));
-        let moved = ViewsSeen {
-            textures: vec![Some(egui::TextureId::User(7))],
-            compiling: vec![false],
+        let seen = shown(false);
+        assert!(ui_due(None, Duration::ZERO, false, &seen));
+        assert!(!ui_due(Some(&idle), short, false, &seen));
+        assert!(!ui_due(Some(&idle), UI_REFRESH - short, false, &seen));
+        assert!(ui_due(Some(&idle), UI_REFRESH, false, &seen));
+        assert!(ui_due(Some(&idle), short, true, &seen));
+        assert!(ui_due(Some(&idle), short, false, &shown(true)));
+        let changed = [
+            UiShown {
+                textures: vec![Some(egui::TextureId::User(7))],
+                ..shown(false)
+            },
+            UiShown {
+                warming: 1,
+                ..shown(false)
+            },
+            UiShown {
+                status: Some("saved shot.png".into()),
+                ..shown(false)
+            },
+            UiShown {
+                size: [640, 360],
+                ..shown(false)
+            },
+        ];
+        for now in &changed {
+            assert!(ui_due(Some(&idle), short, false, now), "{now:?}");
+        }
+        // An error shown: every frame, though it stays the same.
+        let error = UiShown {
+            error: Some("no such mesh".into()),
+            ..shown(false)
         };
-        assert!(ui_due(Some(&idle), short, false, false, &moved));
+        let erring = UiRun {
+            shown: UiShown {
+                error: error.error.clone(),
+                ..shown(false)
+            },
+            ..run(Duration::MAX)
+        };
+        assert!(ui_due(Some(&erring), short, false, &error));
         // egui asked for another run within the refresh period.
         let animating = run(Duration::from_millis(5));
         assert!(!ui_due(
             Some(&animating),
             Duration::from_millis(4),
             false,
-            false,
             &seen
         ));
-        assert!(ui_due(Some(&animating), short, false, false, &seen));
+        assert!(ui_due(Some(&animating), short, false, &seen));
         assert!(ui_due(
             Some(&run(Duration::ZERO)),
             Duration::ZERO,
-            false,
             false,
             &seen
         ));
