@@ -42,13 +42,14 @@ struct RunLimits {
 /// 2-core machines) that runs before the frame's sample is submitted.
 const UI_REFRESH: Duration = Duration::from_millis(250);
 
-/// What the UI shows of state it does not change itself: the views'
-/// egui textures, which still compile their first pipelines and how many
-/// warm up a change, the error and status lines, and the surface's size.
+/// What the UI shows of state it does not change itself: which views
+/// still compile their first pipelines and how many warm up a change,
+/// whether any still converges, the error and status lines, and the
+/// surface's size.
 #[derive(PartialEq, Debug, Default)]
 struct UiShown {
-    textures: Vec<Option<egui::TextureId>>,
     compiling: Vec<bool>,
+    converging: bool,
     warming: usize,
     error: Option<String>,
     status: Option<String>,
@@ -210,7 +211,6 @@ impl LiveApp {
         let (ui, area) = self.run_ui_when_due();
         let mut ui_ms = ui_start.elapsed().as_secs_f64() * 1e3;
         self.apply_edits(&area, ui.pixels_per_point, vsync_before);
-        let was_converging = self.views.converging();
         let sampled = self.sample_views();
         // Frames before every shown view draws (its first pipelines still
         // compiling ahead, render::warmup) are not counted: the frame count
@@ -244,20 +244,15 @@ impl LiveApp {
             return Ok(true);
         }
         self.schedule_next(repaint_delay, compiling_first);
-        if was_converging && !self.views.converging() {
-            // The views' last samples came after this frame's UI (which may
-            // be UI_REFRESH old): one more frame shows the final figures.
-            self.ui_input = true;
-            self.surface.window.request_redraw();
-        }
         if self
             .last_ui
             .as_ref()
             .is_some_and(|l| l.shown != self.ui_shown())
         {
             // Something the UI shows changed after it ran (an error from
-            // applying its edits or from a sample, a warm-up's end): one
-            // more frame shows it, though nothing else would draw one.
+            // applying its edits or from a sample, a warm-up's end, the
+            // views' last sample, whose figures the UI drew before it):
+            // one more frame shows it, though nothing else would draw one.
             self.surface.window.request_redraw();
         }
         Ok(false)
@@ -306,8 +301,8 @@ impl LiveApp {
 
     fn ui_shown(&self) -> UiShown {
         UiShown {
-            textures: self.views.texture_ids(),
             compiling: (self.views).compiling_first(self.model.layout.view_count()),
+            converging: self.views.converging(),
             warming: self.views.warming(),
             error: self.model.error.clone(),
             status: self.model.status.clone(),
@@ -609,8 +604,8 @@ mod tests {
 
     fn shown(compiling: bool) -> UiShown {
         UiShown {
-            textures: vec![None],
             compiling: vec![compiling],
+            converging: true,
             ..UiShown::default()
         }
     }
@@ -643,7 +638,7 @@ mod tests {
         assert!(ui_due(Some(&idle), short, false, &shown(true)));
         let changed = [
             UiShown {
-                textures: vec![Some(egui::TextureId::User(7))],
+                converging: false,
                 ..shown(false)
             },
             UiShown {

@@ -14,7 +14,7 @@ pub(super) struct Overlay {
     pub renderer: egui_wgpu::Renderer,
     /// The paint jobs last tessellated and uploaded into `renderer`'s
     /// buffers, and the surface size they were uploaded for.
-    last_paint: Option<(Vec<egui::ClippedPrimitive>, [u32; 2])>,
+    last_paint: Option<(PaintJobs, [u32; 2])>,
 }
 
 /// egui's part of a frame, ready to draw.
@@ -67,9 +67,13 @@ impl OverlayFrame {
     }
 }
 
+/// Tessellated paint jobs, shared between the frame that drew them and
+/// the frames that draw them again.
+type PaintJobs = std::sync::Arc<[egui::ClippedPrimitive]>;
+
 /// An [`OverlayFrame`] tessellated and uploaded, ready to draw.
 pub(super) struct OverlayPaint {
-    pub paint_jobs: Vec<egui::ClippedPrimitive>,
+    pub paint_jobs: PaintJobs,
     pub screen: egui_wgpu::ScreenDescriptor,
     /// Command buffers egui's callbacks recorded, submitted before the frame's.
     pub extra: Vec<wgpu::CommandBuffer>,
@@ -85,16 +89,16 @@ pub(super) struct OverlayPaint {
 fn paint(
     ctx: &egui::Context,
     renderer: &mut egui_wgpu::Renderer,
-    last: &mut Option<(Vec<egui::ClippedPrimitive>, [u32; 2])>,
+    last: &mut Option<(PaintJobs, [u32; 2])>,
     (gpu, encoder): (&Gpu, &mut wgpu::CommandEncoder),
     shapes: Vec<egui::epaint::ClippedShape>,
     again: bool,
     screen: &egui_wgpu::ScreenDescriptor,
-) -> (Vec<egui::ClippedPrimitive>, Vec<wgpu::CommandBuffer>) {
+) -> (PaintJobs, Vec<wgpu::CommandBuffer>) {
     match last {
         Some((jobs, size)) if again && *size == screen.size_in_pixels => (jobs.clone(), Vec::new()),
         _ => {
-            let jobs = ctx.tessellate(shapes, screen.pixels_per_point);
+            let jobs: PaintJobs = ctx.tessellate(shapes, screen.pixels_per_point).into();
             let extra = renderer.update_buffers(&gpu.device, &gpu.queue, encoder, &jobs, screen);
             *last = Some((jobs.clone(), screen.size_in_pixels));
             (jobs, extra)

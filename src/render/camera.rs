@@ -119,9 +119,10 @@ mod tests {
     /// Every corner of the bounds lies between the near and far planes, as
     /// a view depth, for cameras that look at the bounds head on, from
     /// beside them and from inside them. The off-axis cameras are the
-    /// case a distance-based near plane gets wrong: a unit ball 10 away
-    /// and 25 degrees off the view axis has its nearest view depth at
-    /// 10 cos 25 - 1 = 8.06, inside |centre - eye| - 1.05 = 8.95.
+    /// case a distance-based near plane gets wrong: seen from 10 away and
+    /// 25 degrees off the view axis, the cube's bounding sphere (radius
+    /// sqrt 3) puts that plane at 10 - 1.05 sqrt 3 = 8.18, beyond the
+    /// nearest corner's view depth, 7.73.
     #[test]
     fn the_depth_range_holds_the_bounds_off_the_view_axis() {
         let bounds = (Vec3::splat(-1.0), Vec3::splat(1.0));
