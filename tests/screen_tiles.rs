@@ -2,12 +2,13 @@
 //! (`accel::screen_tiles`), against the CPU tracer: no GPU needed.
 use celray::accel::bvh::Aabb;
 use celray::accel::screen_tiles::{
-    primary_tiles, reached_tiles, tile_list, ScreenBound, TILE_PAD_PX,
+    primary_tiles, reached_tiles, smooth_plane_tiles, smooth_sphere_tiles, tile_list, ScreenBound,
+    SmoothSteps, TILE_PAD_PX,
 };
 use celray::accel::SceneAccel;
 use celray::gpu::twins::{PRIMARY_TILE_MAX, PRIMARY_TILE_WORDS};
 use celray::render::camera::{depth_range, sample_camera};
-use celray::scene::Scene;
+use celray::scene::{Camera, Scene};
 use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
 /// Scattered solids of every analytic kind, a CSG solid, the spot mesh
@@ -405,29 +406,93 @@ fn a_record_of_at_most_one_instance_is_summarized_in_the_flag_word() {
 }
 
 /// What [`check_smooth_claims`] found in one case: tiles claimed, tiles
-/// whose every pixel sees the ball first, and whether the tile at the
-/// centre of the ball's disc was claimed.
+/// whose every pixel sees the target first, and whether the tile of the
+/// probe point (the centre of a ball's disc) was claimed.
 struct Claims {
     claimed: usize,
     all_ball: usize,
     centre_claimed: bool,
 }
 
-/// Checks `smooth_sphere_tiles`' claims for `ball` (an instance of
-/// `scene`) in each case (sub-pixel shift, lens point, tile edge, outline
-/// radius): along the kernel's ray of every pixel of a claimed tile and
-/// its halo (the CPU tracer, the kernel's twin) the closest hit is the
-/// ball, and between every two neighbouring pixels there the view depth
-/// changes its log by at most half of `SmoothSteps::ln_depth` and the
-/// normal turns by at most half of `SmoothSteps::angle`. `depth` is the
-/// near and far planes, `depth_range`'s where `None`.
+/// A CPU proof of smooth tiles for one instance of a scene (the GPU
+/// instance index), with the arguments `smooth_sphere_tiles` and
+/// `smooth_plane_tiles` take after the shapes: the sample's view
+/// direction and projection, the image size, the tile edge, the outline
+/// radius and the per-step bounds.
+type Proof = fn(&SceneAccel, usize, Vec3, Mat4, (u32, u32), u32, u32, SmoothSteps) -> Vec<bool>;
+
+/// `smooth_sphere_tiles` for one exact sphere, as a [`Proof`].
+#[allow(clippy::too_many_arguments)]
+fn sphere_proof(
+    accel: &SceneAccel,
+    target: usize,
+    forward: Vec3,
+    clip: Mat4,
+    size: (u32, u32),
+    tile: u32,
+    reach: u32,
+    steps: SmoothSteps,
+) -> Vec<bool> {
+    let spheres: Vec<_> = (accel.exact_spheres.iter())
+        .filter(|s| s.instance == target)
+        .copied()
+        .collect();
+    smooth_sphere_tiles(
+        &accel.footprints,
+        &spheres,
+        forward,
+        clip,
+        size,
+        tile,
+        reach,
+        steps,
+    )
+}
+
+/// `smooth_plane_tiles` for one exact plane, as a [`Proof`].
+#[allow(clippy::too_many_arguments)]
+fn plane_proof(
+    accel: &SceneAccel,
+    target: usize,
+    forward: Vec3,
+    clip: Mat4,
+    size: (u32, u32),
+    tile: u32,
+    reach: u32,
+    steps: SmoothSteps,
+) -> Vec<bool> {
+    let planes: Vec<_> = (accel.exact_planes.iter())
+        .filter(|p| p.instance == target)
+        .copied()
+        .collect();
+    smooth_plane_tiles(
+        &accel.footprints,
+        &planes,
+        forward,
+        clip,
+        size,
+        tile,
+        reach,
+        steps,
+    )
+}
+
+/// Checks the claims of `prove` for the instance `target` of `scene` in
+/// each case (sub-pixel shift, lens point, tile edge, outline radius):
+/// along the kernel's ray of every pixel of a claimed tile and its halo
+/// (the CPU tracer, the kernel's twin) the closest hit is on `target`,
+/// and between every two neighbouring pixels there the view depth changes
+/// its log by at most half of `SmoothSteps::ln_depth` and the normal
+/// turns by at most half of `SmoothSteps::angle`. `depth` is the near and
+/// far planes, `depth_range`'s where `None`. `probe` is a world point
+/// whose tile [`Claims::centre_claimed`] reports.
 fn check_smooth_claims(
     scene: &Scene,
     depth: Option<(f32, f32)>,
-    ball: celray::accel::screen_tiles::ExactSphere,
+    (target, probe): (usize, Vec3),
+    prove: Proof,
     cases: &[(Vec2, Vec2, u32, u32)],
 ) -> Vec<Claims> {
-    use celray::accel::screen_tiles::{smooth_sphere_tiles, SmoothSteps};
     let order: Vec<usize> = (0..scene.instances.len()).collect();
     let accel = SceneAccel::build(scene, &order).unwrap();
     let size = (scene.camera.width, scene.camera.height);
@@ -441,9 +506,9 @@ fn check_smooth_claims(
         let depth = depth.unwrap_or_else(|| depth_range(&scene.camera, scene.bounds()));
         let cam = sample_camera(&scene.camera, size, shift, lens, depth);
         let steps = SmoothSteps::for_radius(reach);
-        let claimed = smooth_sphere_tiles(
-            &accel.footprints,
-            &accel.exact_spheres,
+        let claimed = prove(
+            &accel,
+            target,
             cam.forward,
             cam.clip_from_world,
             size,
@@ -460,7 +525,7 @@ fn check_smooth_claims(
                 let (x, y) = (i % size.0, i / size.0);
                 let (o, d) = kernel_ray(cam.clip_from_world, size, x, y);
                 let h = accel.closest_hit(o, d, 0.0, f32::INFINITY).hit?;
-                (h.instance as usize == ball.instance)
+                (h.instance as usize == target)
                     .then(|| (h.geometric, (o + d * h.t - cam.eye).dot(cam.forward)))
             })
             .collect();
@@ -487,7 +552,7 @@ fn check_smooth_claims(
             out.claimed += 1;
             assert!(
                 every,
-                "tile ({tx}, {ty}) ({tile} px, reach {reach}): a pixel does not see the ball first"
+                "tile ({tx}, {ty}) ({tile} px, reach {reach}): a pixel does not see instance {target} first"
             );
             for y in y0..=y1 {
                 for x in x0..=x1 {
@@ -513,8 +578,8 @@ fn check_smooth_claims(
                 }
             }
         }
-        // The tile holding the projection of the ball's centre.
-        let centre = cam.clip_from_world.project_point3(ball.centre);
+        // The tile holding the projection of the probe.
+        let centre = cam.clip_from_world.project_point3(probe);
         let px = (
             ((centre.x + 1.0) * 0.5 * size.0 as f32) as u32,
             ((1.0 - centre.y) * 0.5 * size.1 as f32) as u32,
@@ -585,7 +650,8 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
     let near = check_smooth_claims(
         &scene,
         None,
-        spheres[0],
+        (spheres[0].instance, spheres[0].centre),
+        sphere_proof,
         &[
             (Vec2::splat(0.5), Vec2::ZERO, 8, 1),
             (Vec2::new(0.1, 0.9), Vec2::new(0.6, -0.8), 8, 1),
@@ -615,7 +681,8 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
     let far = check_smooth_claims(
         &scene,
         None,
-        spheres[1],
+        (spheres[1].instance, spheres[1].centre),
+        sphere_proof,
         &[
             (Vec2::splat(0.5), Vec2::ZERO, 8, 1),
             (Vec2::new(0.2, 0.7), Vec2::ZERO, 16, 8),
@@ -666,8 +733,149 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
     let claims = check_smooth_claims(
         &cut,
         Some(depth),
-        ball,
+        (ball.instance, ball.centre),
+        sphere_proof,
         &[(Vec2::splat(0.5), Vec2::ZERO, 8, 1)],
     );
     assert_eq!(claims[0].claimed, 0, "tiles of a ball the near plane cuts");
+}
+
+/// `smooth_plane_tiles` claims a tile only where the outline marks would
+/// prove it the smooth inside of one quad or disk, with half of each
+/// per-step bound to spare ([`check_smooth_claims`]), and it claims enough
+/// to matter. A floor quad (6 x 6 half sizes, its far edge and the sky
+/// beyond in view) with a crate standing on it (in the way: the crate's
+/// tiles are not claimed) and a ball wholly under it (beyond the plane
+/// from the eye, so it blocks nothing: the tile over it is claimed), and
+/// a disk tilted and stretched by a matrix that is not a similarity.
+/// - Looking down from 2.5 above the floor, 640 x 360, outline radius 1,
+///   8 px tiles, a sub-pixel shift and a lens point: the tile over the
+///   hidden ball and the tile of the disk's centre are claimed, and at
+///   least half of the tiles whose every pixel sees the floor are (the
+///   depth bound, d (tan f + tan g), holds out to about 75 degrees from
+///   the floor's normal here, where the far edge is at 79).
+/// - From 6 above the floor, outline radius 3 (each step bounded to a
+///   sixth of the end-to-end bounds), 8 and 16 px tiles: the tile over
+///   the hidden ball is claimed. The eye is inside the scene's bounds, so
+///   the near plane is 1e-4 of the far plane's distance, where the far
+///   plane's points are affine in the pixel point only to a relative
+///   2e-4 (`TileCones`).
+/// - From 0.3 above the floor, looking along it: towards the far edge the
+///   view grazes the floor (89 degrees from its normal), where the view
+///   depth changes its log by d tan g = 0.07 a pixel, seven times the half
+///   bound; tiles are claimed near the eye, but not all of the floor's.
+///   Without the tan g term the claims would reach the far edge.
+/// - A near plane set through the floor (view depth 4.0; the bottom row's
+///   ray, 42 degrees below the horizontal, meets the floor at view depth
+///   2.5 cos 22.5 / sin 42 = 3.45): the rays of the bottom rows start
+///   beyond the floor and miss it, and their tiles are not claimed.
+#[test]
+fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_plane() {
+    let ron = r#"(version: 1,
+        camera: (eye: (0.5, 2.5, 7.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 45.0, width: 640, height: 360),
+        lights: [Directional(direction: (-0.5, -1.0, -0.6), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) },
+        shapes: {
+            "floor": Plane(Quad(half_size: (6.0, 6.0))),
+            "crate": Box(half_extents: (0.5, 0.5, 0.5)),
+            "ball": Sphere(radius: 0.5),
+            "disk": Plane(Disk(radius: 1.0)),
+        },
+        instances: [
+            (shape: "floor", material: "m"),
+            (shape: "crate", material: "m", transform: (translate: (-0.5, 0.5, -1.0), rotate_deg: (0.0, 25.0, 0.0))),
+            (shape: "ball", material: "m", transform: (translate: (1.5, -1.0, 1.5))),
+            (shape: "disk", material: "m", transform: (translate: (-2.5, 1.3, 1.0), rotate_deg: (70.0, 30.0, 0.0), scale: (1.5, 1.0, 0.7))),
+        ],
+    )"#;
+    let mut scene = Scene::from_ron_str(ron, "test.ron", std::path::Path::new(".")).unwrap();
+    scene.camera.focus_distance = Some(7.0);
+    scene.camera.aperture_radius = 0.05;
+    let order: Vec<usize> = (0..scene.instances.len()).collect();
+    let planes = SceneAccel::build(&scene, &order).unwrap().exact_planes;
+    assert_eq!(
+        planes
+            .iter()
+            .map(|p| (p.instance, p.disk))
+            .collect::<Vec<_>>(),
+        [(0, false), (3, true)],
+        "the floor and the disk are exact planes"
+    );
+    let cases = [
+        (Vec2::splat(0.5), Vec2::ZERO, 8, 1),
+        (Vec2::new(0.1, 0.9), Vec2::new(0.6, -0.8), 8, 1),
+        (Vec2::new(0.9, 0.3), Vec2::ZERO, 8, 3),
+        (Vec2::new(0.4, 0.6), Vec2::new(-1.0, 0.0), 16, 3),
+    ];
+    let over_ball = Vec3::new(1.5, 0.0, 1.5);
+    let floor = check_smooth_claims(&scene, None, (0, over_ball), plane_proof, &cases[..2]);
+    for (case, c) in floor.iter().enumerate() {
+        assert!(
+            c.centre_claimed,
+            "case {case}: the tile over the hidden ball"
+        );
+        assert!(
+            2 * c.claimed >= c.all_ball,
+            "case {case}: {} tiles claimed of {} that see only the floor",
+            c.claimed,
+            c.all_ball
+        );
+    }
+    let top = Camera {
+        eye: Vec3::new(0.5, 6.0, 2.0),
+        target: Vec3::ZERO,
+        ..scene.camera.clone()
+    };
+    let from_above = Scene {
+        camera: top,
+        ..scene.clone()
+    };
+    // The eye is inside the scene's bounds here, so `depth_range` puts
+    // the near plane at 1e-4 of the far plane's distance.
+    let floor = check_smooth_claims(&from_above, None, (0, over_ball), plane_proof, &cases[2..]);
+    for (case, c) in floor.iter().enumerate() {
+        assert!(
+            c.centre_claimed,
+            "case {case}, radius 3: the tile over the hidden ball"
+        );
+    }
+    let disk_centre = Vec3::new(-2.5, 1.3, 1.0);
+    let disk = check_smooth_claims(&scene, None, (3, disk_centre), plane_proof, &cases[..2]);
+    for (case, c) in disk.iter().enumerate() {
+        assert!(
+            c.centre_claimed,
+            "case {case}: the tile of the disk's centre"
+        );
+    }
+
+    scene.camera.eye = Vec3::new(0.0, 0.3, 5.5);
+    scene.camera.target = Vec3::new(0.0, 0.25, -6.0);
+    scene.camera.aperture_radius = 0.0;
+    let low = check_smooth_claims(&scene, None, (0, over_ball), plane_proof, &cases[..1]);
+    assert!(
+        low[0].claimed > 0 && low[0].claimed < low[0].all_ball,
+        "grazing view: {} tiles claimed of {} that see only the floor",
+        low[0].claimed,
+        low[0].all_ball
+    );
+
+    scene.camera.eye = Vec3::new(0.5, 2.5, 7.0);
+    scene.camera.target = Vec3::ZERO;
+    let size = (scene.camera.width, scene.camera.height);
+    let depth = (4.0, depth_range(&scene.camera, scene.bounds()).1);
+    let accel = SceneAccel::build(&scene, &order).unwrap();
+    let cam = sample_camera(&scene.camera, size, Vec2::splat(0.5), Vec2::ZERO, depth);
+    let (o, d) = kernel_ray(cam.clip_from_world, size, size.0 / 2, size.1 - 1);
+    assert!(
+        accel.closest_hit(o, d, 0.0, f32::INFINITY).hit.is_none(),
+        "the near plane cuts the floor at the bottom row"
+    );
+    let cut = check_smooth_claims(
+        &scene,
+        Some(depth),
+        (0, over_ball),
+        plane_proof,
+        &cases[..1],
+    );
+    assert!(cut[0].claimed > 0, "tiles beyond the cut are claimed");
 }

@@ -144,6 +144,9 @@ pub struct SceneAccel {
     /// outline tiles the CPU proves smooth
     /// (`screen_tiles::smooth_sphere_tiles`).
     pub exact_spheres: Vec<screen_tiles::ExactSphere>,
+    /// The static quads and disks (`exact_planes`), for the same proof
+    /// (`screen_tiles::smooth_plane_tiles`).
+    pub exact_planes: Vec<screen_tiles::ExactPlane>,
     /// Postfix programs of the CSG shapes (each ends with CSG_OP_END).
     pub csg_ops: Vec<GpuCsgOp>,
     pub csg_leaves: Vec<GpuCsgLeaf>,
@@ -219,6 +222,36 @@ fn exact_spheres(
                 instance: k,
                 centre: sphere.truncate(),
                 radius: sphere.w,
+            })
+        })
+        .collect()
+}
+
+/// The static instances of quads and disks (`screen_tiles::ExactPlane`):
+/// every hit the kernels find on them lies on one world plane, whatever
+/// their (invertible, affine) matrix.
+fn exact_planes(
+    shapes: &[GpuShape],
+    instances: &[(Mat4, Mat4, u32)],
+    moving: &[bool],
+) -> Vec<screen_tiles::ExactPlane> {
+    instances
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| !moving[k])
+        .filter_map(|(k, &(_, object_from_world, shape))| {
+            let shape = &shapes[shape as usize];
+            let disk = match shape.kind {
+                SHAPE_QUAD => false,
+                SHAPE_DISK => true,
+                _ => return None,
+            };
+            let p = shape.params;
+            Some(screen_tiles::ExactPlane {
+                instance: k,
+                object_from_world,
+                half: glam::Vec2::new(p[0], if disk { p[0] } else { p[1] }),
+                disk,
             })
         })
         .collect()
@@ -397,7 +430,8 @@ impl SceneAccel {
         let footprints = (0..instances.len())
             .map(|k| {
                 let (world_from_object, _, shape) = instances[k];
-                let sphere = world_sphere(&shapes[shape as usize], world_from_object);
+                let shape = &shapes[shape as usize];
+                let sphere = world_sphere(shape, world_from_object);
                 Footprint {
                     bounds: world_bounds[k],
                     sphere: sphere.filter(|_| !moving[k]),
@@ -405,6 +439,7 @@ impl SceneAccel {
             })
             .collect::<Vec<_>>();
         let exact_spheres = exact_spheres(&shapes, &instances, &footprints);
+        let exact_planes = exact_planes(&shapes, &instances, &moving);
         let tlas = bvh::build(&world_bounds, INSTANCE_LEAF);
         // One stack serves both levels, holding at most one entry per level
         // of the top-level path plus one per level of a mesh's path.
@@ -458,6 +493,7 @@ impl SceneAccel {
             moving,
             footprints,
             exact_spheres,
+            exact_planes,
             csg_ops,
             triangle_sources,
             csg_leaves,

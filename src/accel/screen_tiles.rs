@@ -191,28 +191,32 @@ fn touched_tiles<'a, B: ScreenBound>(
 ///
 /// Every primary ray passes through the centre of projection (the eye; a
 /// point on the lens in a depth-of-field sample) and its pixel's point on
-/// the far plane. A tile's rays lie in the cone from the eye around the
-/// ray through the tile's centre whose half-angle reaches the grown
-/// rectangle's corners. The far plane is one of constant view depth, so
-/// its points are an affine function of the pixel point (up to the f32
-/// matrix's rounding, a relative 1e-5 here), and that half-angle is at
-/// most the rectangle's half-diagonal on the far plane over the plane's
+/// the far plane, whose homogeneous coordinates h are linear in the pixel
+/// point. So its direction, (h.xyz - eye h.w) / h.w, is a positive
+/// multiple of a linear function of the pixel point wherever h.w > 0 (a
+/// perspective projection): the rays pass through the points of one plane
+/// that are an affine function of the pixel point. (The far plane itself
+/// is that only up to the f32 matrix's rounding, which near planes 1e-4 of
+/// the far plane's distance magnify to a relative 2e-4.) A tile's rays lie
+/// in the cone from the eye around the ray through the tile's centre whose
+/// half-angle reaches the grown rectangle's corners, and that half-angle
+/// is at most the rectangle's half-diagonal on that plane over the plane's
 /// distance from the eye (radial projection onto the sphere of that
 /// radius shortens no path): one bound for every tile, taken 1% wider for
 /// the rounding. So a tile is tested with one direction.
 struct TileCones {
-    /// The eye, then the homogeneous far-plane point of pixel point
-    /// (x, y) (pixel centres at integers, as [`pixel_rect`]) as
-    /// h0 + x hx + y hy; `None` where the projection is not of that kind
-    /// (then every tile may meet every sphere).
-    rays: Option<(DVec3, [DVec4; 3])>,
+    /// The eye, then the direction of the ray through pixel point (x, y)
+    /// (pixel centres at integers, as [`pixel_rect`]) as a + x b + y c;
+    /// `None` where the projection is not a perspective one (then every
+    /// tile may meet every sphere).
+    rays: Option<(DVec3, [DVec3; 3])>,
     /// A tile's centre pixel point is (t + 0.5) tile_px - 0.5 in x and y.
     tile_px: f64,
     /// The bound on every tile's half-angle (radians).
     half_angle: f64,
     /// A bound on the angle between the rays of two neighbouring pixels
-    /// (radians): a pixel's step on the far plane over the plane's
-    /// distance, 1% wider as `half_angle`.
+    /// (radians): a pixel's step on the plane over the plane's distance,
+    /// 1% wider as `half_angle`.
     pixel_angle: f64,
 }
 
@@ -235,35 +239,49 @@ impl TileCones {
         let hy = world_from_clip * DVec4::new(0.0, -2.0 / h, 0.0, 0.0);
         // The centre of projection maps to clip x = y = w = 0.
         let centre = world_from_clip * DVec4::Z;
-        let point = |p: DVec4| p.truncate() / p.w;
-        let [o, x, y, xy] = [h0, h0 + hx, h0 + hy, h0 + w * hx + h * hy];
-        let affine = [x.w, y.w, xy.w]
+        let eye = centre.truncate() / centre.w;
+        // h.w at the image's corners: positive there, positive over it.
+        let ahead = [h0, h0 + w * hx, h0 + h * hy, h0 + w * hx + h * hy]
             .iter()
-            .all(|&v| (v - o.w).abs() <= 1e-4 * o.w.abs());
-        let eye = point(centre);
-        let rays = (affine && eye.is_finite() && o.w.abs() > 0.0).then_some((eye, [h0, hx, hy]));
+            .all(|c| c.w > 0.0);
+        let direction = |h: DVec4| h.truncate() - eye * h.w;
+        let (a, b, c) = (direction(h0), direction(hx), direction(hy));
         let span = f64::from(tile_px) - 1.0 + 2.0 * (f64::from(reach_px) + f64::from(TILE_PAD_PX));
-        let (o, dx, dy) = (point(o), point(x) - point(o), point(y) - point(o));
-        let distance = (o - eye).dot(dx.cross(dy).normalize()).abs();
-        let half_diagonal = 0.5 * span * (dx + dy).length().max((dx - dy).length());
+        let distance = a.dot(b.cross(c).normalize()).abs();
+        let half_diagonal = 0.5 * span * (b + c).length().max((b - c).length());
         let half_angle = 1.01 * half_diagonal / distance;
+        let perspective = ahead && eye.is_finite() && half_angle.is_finite();
         TileCones {
-            rays: rays.filter(|_| half_angle.is_finite()),
+            rays: perspective.then_some((eye, [a, b, c])),
             tile_px: f64::from(tile_px),
             half_angle,
-            pixel_angle: 1.01 * dx.length().max(dy.length()) / distance,
+            pixel_angle: 1.01 * b.length().max(c.length()) / distance,
         }
     }
 
     /// The unit axis of tile (tx, ty)'s cone, from the eye.
     fn axis(&self, tx: usize, ty: usize) -> Option<DVec3> {
-        let (eye, [h0, hx, hy]) = self.rays?;
         let (x, y) = (
             (tx as f64 + 0.5) * self.tile_px - 0.5,
             (ty as f64 + 0.5) * self.tile_px - 0.5,
         );
-        let far = h0 + x * hx + y * hy;
-        Some((far.truncate() / far.w - eye).normalize())
+        Some(self.ray(x, y)?.normalize())
+    }
+
+    /// The sine and cosine of the largest angle that a ray of the cone
+    /// around `axis` (a tile's, [`TileCones::axis`]) may make with the
+    /// unit direction `to`: the axis' angle grown by the half-angle.
+    fn widest(&self, axis: DVec3, to: DVec3) -> (f64, f64) {
+        let (sin_h, cos_h) = self.half_angle.sin_cos();
+        let cos = axis.dot(to).clamp(-1.0, 1.0);
+        let sin = (1.0 - cos * cos).sqrt();
+        (sin * cos_h + cos * sin_h, cos * cos_h - sin * sin_h)
+    }
+
+    /// The direction (not unit) of the ray through pixel point (x, y).
+    fn ray(&self, x: f64, y: f64) -> Option<DVec3> {
+        let (_, [a, b, c]) = self.rays?;
+        Some(a + x * b + y * c)
     }
 
     /// `sphere` (centre xyz, radius w) as [`TileCones::meets`] tests it;
@@ -425,14 +443,9 @@ pub fn smooth_sphere_tiles(
         return out;
     };
     let forward = forward.as_dvec3().normalize();
-    // Primary rays start on the near plane (NDC z 0, a plane of constant
-    // view depth): a sphere it cuts shows its inside through the hole.
-    let near = {
-        let p = clip_from_world.as_dmat4().inverse() * DVec4::W;
-        (p.truncate() / p.w - eye).dot(forward)
-    };
-    let (h, d) = (cones.half_angle, cones.pixel_angle);
-    let (sin_h, cos_h) = h.sin_cos();
+    // A sphere the near plane cuts shows its inside through the hole.
+    let near = near_depth(clip_from_world, eye, forward);
+    let d = cones.pixel_angle;
     // Per tile, the last sphere (index into `spheres`) for which some
     // other instance may come first there.
     let mut blocked = vec![usize::MAX; out.len()];
@@ -516,15 +529,8 @@ pub fn smooth_sphere_tiles(
                 let Some(axis) = cones.axis(tx, ty) else {
                     continue;
                 };
-                // The sine and cosine of the axis' angle with `to`, grown by
-                // the cone's half-angle.
-                let widened = |to: DVec3| {
-                    let cos = axis.dot(to).clamp(-1.0, 1.0);
-                    let sin = (1.0 - cos * cos).sqrt();
-                    (sin * cos_h + cos * sin_h, cos * cos_h - sin * sin_h)
-                };
-                let (sin_a, cos_a) = widened(u);
-                let (sin_f, cos_f) = widened(forward);
+                let (sin_a, cos_a) = cones.widest(axis, u);
+                let (sin_f, cos_f) = cones.widest(axis, forward);
                 let sin_i = distance / radius * sin_a;
                 if cos_a <= 0.0 || sin_i >= 1.0 || cos_f <= 0.05 {
                     continue;
@@ -534,6 +540,180 @@ pub fn smooth_sphere_tiles(
                 let depth =
                     d * (distance * sin_a * (slant - 1.0) / (distance - radius) + sin_f / cos_f);
                 if turn <= 0.5 * steps.angle && depth <= 0.5 * steps.ln_depth {
+                    out[ty * tiles.0 + tx] = true;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The view depth of the near plane (NDC z 0, a plane of constant view
+/// depth), where the kernel's primary rays start, for the eye `eye` and
+/// unit view direction `forward` of `clip_from_world`.
+fn near_depth(clip_from_world: Mat4, eye: DVec3, forward: DVec3) -> f64 {
+    let p = clip_from_world.as_dmat4().inverse() * DVec4::W;
+    (p.truncate() / p.w - eye).dot(forward)
+}
+
+/// An instance that is exactly a flat quad or disk in the world: a static
+/// plane shape (`SHAPE_QUAD`, `SHAPE_DISK`) under its matrix, any
+/// invertible affine one. The kernels meet it where a ray, taken into
+/// object space by `object_from_world`, crosses y = 0 inside the outline,
+/// so all its hits lie on one world plane with one normal. For
+/// [`smooth_plane_tiles`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExactPlane {
+    /// Its index among the footprints (the GPU instance index).
+    pub instance: usize,
+    pub object_from_world: Mat4,
+    /// A quad's half sizes in x and z, or a disk's radius in both.
+    pub half: Vec2,
+    pub disk: bool,
+}
+
+/// Per tile of `tile_px` over `size`, row by row: true where the CPU
+/// proves what the outline marks would prove texel by texel, that the
+/// tile and its halo of `reach_px` pixels are the smooth inside of one
+/// plane of `planes`, with half of `steps` to spare for the kernels'
+/// rounding, as [`smooth_sphere_tiles`] does for spheres.
+///
+/// The rays of a tile and its halo pass through the eye and the far-plane
+/// points of its pixel rectangle grown by the reach and [`TILE_PAD_PX`].
+/// The far plane is an affine image of the pixel rectangle, so each ray
+/// is a positive combination of the four corners' rays. Where those four
+/// meet the plane in front of the eye, beyond the near plane (where the
+/// kernel's rays start) and inside the quad or disk (both convex), every
+/// ray of the tile does: seen from the eye, the far rectangle projects
+/// onto the convex hull of the four hits. Nothing comes first where no
+/// other instance's rectangle reaches the tile, unless that instance's
+/// box lies wholly on the far side of the plane from the eye, or beyond
+/// one face of its own box from both the eye and the plane's box (every
+/// segment from the eye to the plane then stays on the near side of that
+/// face).
+///
+/// Then, with n the plane's unit normal facing away from the eye, h the
+/// eye's distance to the plane and v a ray's unit direction, the hit's
+/// view depth is z = h (v . f) / (v . n). The normal never turns, and ln
+/// z changes between two neighbouring pixels (rays at most d apart,
+/// `TileCones::pixel_angle`) by at most d (tan f_max + tan g_max): v .
+/// w changes its log by at most tan(angle(v, w)) per radian that v turns,
+/// and f_max and g_max are the cone's largest angles with `forward` and
+/// with n. A grazing view (g_max near 90 degrees, the horizon) proves
+/// nothing, as the marks would find the depth's steps too long there.
+#[allow(clippy::too_many_arguments)]
+pub fn smooth_plane_tiles(
+    bounds: &[impl ScreenBound],
+    planes: &[ExactPlane],
+    forward: Vec3,
+    clip_from_world: Mat4,
+    size: (u32, u32),
+    tile_px: u32,
+    reach_px: u32,
+    steps: SmoothSteps,
+) -> Vec<bool> {
+    let tiles = tile_grid(size, tile_px);
+    let mut out = vec![false; tiles.0 * tiles.1];
+    let cones = TileCones::new(clip_from_world, size, tile_px, reach_px);
+    let Some((eye, _)) = cones.rays else {
+        return out;
+    };
+    let forward = forward.as_dvec3().normalize();
+    let near = near_depth(clip_from_world, eye, forward);
+    let grow = f64::from(reach_px) + f64::from(TILE_PAD_PX);
+    let span = f64::from(tile_px) - 1.0 + 2.0 * grow;
+    // Per tile, the last plane (index into `planes`) for which some other
+    // instance may come first there.
+    let mut blocked = vec![usize::MAX; out.len()];
+    for (n, plane) in planes.iter().enumerate() {
+        let m = plane.object_from_world.as_dmat4();
+        // The eye in object space, and the plane's normal in the world:
+        // the gradient of the object-space y, facing away from the eye.
+        let o = m.transform_point3(eye);
+        let gradient = DVec3::new(m.x_axis.y, m.y_axis.y, m.z_axis.y);
+        let normal = -o.y.signum() * gradient.normalize();
+        if !normal.is_finite() || o.y.abs() <= 1e-6 * o.abs().max_element() {
+            continue;
+        }
+        // The outline, shrunk by a relative 1e-5 for the kernels' f32
+        // rounding of the object-space hit.
+        let half = plane.half.as_dvec2() * (1.0 - 1e-5);
+        let inside = |q: DVec3| {
+            if plane.disk {
+                q.x * q.x + q.z * q.z <= half.x * half.x
+            } else {
+                q.x.abs() <= half.x && q.z.abs() <= half.y
+            }
+        };
+        // Another instance cannot come first where its box lies wholly on
+        // the plane's far side from the eye, or beyond one face of its own
+        // box from both the eye and the plane's own box (a floor under a
+        // wall).
+        let own = bounds[plane.instance].world_box();
+        let (own_lo, own_hi) = (own.min.as_dvec3(), own.max.as_dvec3());
+        let out_of_way = |j: usize| {
+            let b = grown_box(bounds[j].world_box(), eye.as_vec3());
+            let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+            let beyond =
+                (b.corners().iter()).all(|c| m.transform_point3(c.as_dvec3()).y * o.y < 0.0);
+            let apart = (0..3).any(|a| {
+                (eye[a] > hi[a] && own_lo[a] > hi[a]) || (eye[a] < lo[a] && own_hi[a] < lo[a])
+            });
+            beyond || apart
+        };
+        let in_way = |j: usize| j != plane.instance && !out_of_way(j);
+        for (_, xs, ys, _) in
+            touched_tiles(bounds, in_way, clip_from_world, size, tile_px, reach_px)
+        {
+            for ty in ys {
+                blocked[ty * tiles.0 + xs.start()..=ty * tiles.0 + xs.end()].fill(n);
+            }
+        }
+        let Some((_, xs, ys, _)) = touched_tiles(
+            bounds,
+            |j| j == plane.instance,
+            clip_from_world,
+            size,
+            tile_px,
+            reach_px,
+        )
+        .next() else {
+            continue;
+        };
+        for ty in ys {
+            for tx in xs.clone() {
+                if blocked[ty * tiles.0 + tx] == n {
+                    continue;
+                }
+                let x0 = (tx as f64) * f64::from(tile_px) - grow;
+                let y0 = (ty as f64) * f64::from(tile_px) - grow;
+                let corners = [
+                    (x0, y0),
+                    (x0 + span, y0),
+                    (x0, y0 + span),
+                    (x0 + span, y0 + span),
+                ];
+                let meets_inside = corners.iter().all(|&(x, y)| {
+                    let Some(v) = cones.ray(x, y) else {
+                        return false;
+                    };
+                    let dv = m.transform_vector3(v);
+                    let t = -o.y / dv.y;
+                    t > 0.0
+                        && t.is_finite()
+                        && inside(o + dv * t)
+                        && (v * t).dot(forward) > near * 1.001
+                });
+                let Some(axis) = cones.axis(tx, ty).filter(|_| meets_inside) else {
+                    continue;
+                };
+                let (sin_f, cos_f) = cones.widest(axis, forward);
+                let (sin_g, cos_g) = cones.widest(axis, normal);
+                if cos_f <= 0.05 || cos_g <= 0.05 {
+                    continue;
+                }
+                let depth = cones.pixel_angle * (sin_f / cos_f + sin_g / cos_g);
+                if depth <= 0.5 * steps.ln_depth {
                     out[ty * tiles.0 + tx] = true;
                 }
             }

@@ -221,7 +221,7 @@ pub struct Gpu {
     /// the smooth inside of one sphere, which the outline marks then skip
     /// (`Renderer::render_sample`); tests turn it off to check the images
     /// against the marks proving it texel by texel.
-    smooth_spheres: AtomicBool,
+    smooth_tiles: AtomicBool,
     /// Whether scenes uploaded from now on give shadow rays occluder lists
     /// (`accel::shadow_cull`); tests turn it off to check the lists
     /// against the BVH walk.
@@ -401,7 +401,7 @@ impl Gpu {
             select_tables: AtomicBool::new(select_tables),
             outline_tile_list: AtomicBool::new(true),
             trace_accumulates: AtomicBool::new(true),
-            smooth_spheres: AtomicBool::new(true),
+            smooth_tiles: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
             primary_tiles: AtomicBool::new(true),
             looping_groups,
@@ -462,16 +462,16 @@ impl Gpu {
     }
 
     /// Whether renderers made from now on skip the outline marks of the
-    /// tiles the CPU proves the smooth inside of one sphere
-    /// (`accel::screen_tiles::smooth_sphere_tiles`; on by default; off:
-    /// the marks prove them texel by texel, the same image, for tests and
-    /// benchmarks).
-    pub fn set_smooth_spheres(&self, on: bool) {
-        self.smooth_spheres.store(on, Ordering::Relaxed);
+    /// tiles the CPU proves the smooth inside of one sphere or plane
+    /// (`accel::screen_tiles::smooth_sphere_tiles`, `smooth_plane_tiles`;
+    /// on by default; off: the marks prove them texel by texel, the same
+    /// image, for tests and benchmarks).
+    pub fn set_smooth_tiles(&self, on: bool) {
+        self.smooth_tiles.store(on, Ordering::Relaxed);
     }
 
-    pub fn smooth_spheres(&self) -> bool {
-        self.smooth_spheres.load(Ordering::Relaxed)
+    pub fn smooth_tiles(&self) -> bool {
+        self.smooth_tiles.load(Ordering::Relaxed)
     }
 
     /// Whether scenes uploaded from now on give each instance's shadow rays

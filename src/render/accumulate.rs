@@ -405,6 +405,12 @@ impl AccumulatePass {
         }
     }
 
+    /// The source tiles last uploaded (empty before the first, or after
+    /// a change of tile edge cleared them). For tests.
+    pub fn source_tiles(&self) -> &[u32] {
+        &self.written_sources
+    }
+
     /// The tile edge for a `width` x `height` image whose widest outline
     /// is `max_outline_px` ([`accumulate_tile_px`], with this device's
     /// dispatch limit).

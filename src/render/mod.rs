@@ -238,9 +238,9 @@ pub struct Renderer {
     /// ([`Gpu::set_trace_accumulates`] when the renderer was made).
     trace_may_accumulate: bool,
     /// Whether the outline marks skip the tiles the CPU proves the smooth
-    /// inside of one sphere ([`Gpu::set_smooth_spheres`] when the renderer
-    /// was made).
-    smooth_spheres: bool,
+    /// inside of one sphere or plane ([`Gpu::set_smooth_tiles`] when the
+    /// renderer was made).
+    smooth_tiles: bool,
     /// The last sample's frame uniforms, where its trace pass left the
     /// normal, depth and id of some tiles unstored (`TILE_GBUFFER_SKIPS`:
     /// no pass of that sample read them); [`Renderer::complete_gbuffer`]
@@ -317,7 +317,7 @@ impl Renderer {
             temporal: TemporalState::default(),
             tile_px: None,
             trace_may_accumulate: gpu.trace_accumulates(),
-            smooth_spheres: gpu.smooth_spheres(),
+            smooth_tiles: gpu.smooth_tiles(),
             partial_gbuffer: None,
         };
         renderer.bind(gpu)?;
@@ -870,9 +870,11 @@ impl Renderer {
     /// direction `forward`) with primary mode `mode`: an
     /// instance whose outline reaches other pixels may show within the
     /// outline radius of it (`accel::screen_tiles::reached_tiles`), unless
-    /// (traced primary hits only) the CPU proves the tile and its halo the
-    /// smooth inside of one sphere (`screen_tiles::smooth_sphere_tiles`),
-    /// where the outline marks would prove the same texel by texel;
+    /// the CPU proves the tile and its halo the smooth inside of one sphere
+    /// (traced primary hits only: `screen_tiles::smooth_sphere_tiles`) or
+    /// of one quad or disk (disks traced only:
+    /// `screen_tiles::smooth_plane_tiles`), where the outline marks would
+    /// prove the same texel by texel;
     /// 1 everywhere in scenes of more than `MAX_TILED_INSTANCES` instances,
     /// where projecting them all for each sample would cost more than the
     /// reads it saves.
@@ -901,10 +903,23 @@ impl Renderer {
             tile_px,
             reach,
         );
-        // The raster pass draws spheres as tessellations, whose normals and
-        // depths the proof does not bound.
-        if mode != RenderMode::Raster && self.smooth_spheres {
-            let smooth = screen_tiles::smooth_sphere_tiles(
+        if !self.smooth_tiles {
+            return tiles;
+        }
+        let steps = SmoothSteps::for_radius(reach);
+        let mut clear = |smooth: Vec<bool>| {
+            for (t, smooth) in tiles.iter_mut().zip(smooth) {
+                if smooth {
+                    *t = 0;
+                }
+            }
+        };
+        // The raster pass draws spheres and disks as tessellations, whose
+        // normals and depths (spheres) and rims (disks) the proofs do not
+        // bound; a quad is two triangles over the same points.
+        let raster = mode == RenderMode::Raster;
+        if !raster {
+            clear(screen_tiles::smooth_sphere_tiles(
                 &accel.footprints,
                 &accel.exact_spheres,
                 forward,
@@ -912,14 +927,23 @@ impl Renderer {
                 size,
                 tile_px,
                 reach,
-                SmoothSteps::for_radius(reach),
-            );
-            for (t, smooth) in tiles.iter_mut().zip(smooth) {
-                if smooth {
-                    *t = 0;
-                }
-            }
+                steps,
+            ));
         }
+        let planes: Vec<_> = (accel.exact_planes.iter())
+            .filter(|p| !(raster && p.disk))
+            .copied()
+            .collect();
+        clear(screen_tiles::smooth_plane_tiles(
+            &accel.footprints,
+            &planes,
+            forward,
+            clip_from_world,
+            size,
+            tile_px,
+            reach,
+            steps,
+        ));
         tiles
     }
 
@@ -1294,6 +1318,14 @@ impl Renderer {
     pub fn read_outline_tile_words(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
         self.accumulate
             .read_tile_marks(gpu, &self.targets, self.outline_tile_px())
+    }
+
+    /// The last sample's source tiles, as the CPU made them for the
+    /// outline marks (one word per tile of [`Renderer::outline_tile_px`],
+    /// row by row: 0 where no outline can reach the tile, or where the CPU
+    /// proves it smooth; [`Gpu::set_smooth_tiles`]). For tests.
+    pub fn source_tiles(&self) -> &[u32] {
+        self.accumulate.source_tiles()
     }
 
     /// The edge (pixels) of the accumulate pass's tiles for this scene's
