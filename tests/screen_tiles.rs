@@ -366,6 +366,117 @@ fn a_balls_bounding_sphere_flags_only_the_tiles_near_its_disk() {
     );
 }
 
+/// A tilted, stretched quad and a disk (not under a similarity), whole in
+/// front of the eye, seen at a slant through a lens: their boxes'
+/// rectangles hold large parts of the image they do not cover. With their
+/// polygons' images (`Footprint::outline`), the flags and lists stay
+/// conservative (every tile within reach of a pixel whose ray meets one
+/// flagged, and every pixel's hit in its tile's list) and tight: a flagged
+/// tile lies within tile + reach + 2 TILE_PAD_PX + 1 + 9 px (in x and y)
+/// of a pixel that shows one. The image is grown by TILE_PAD_PX at each
+/// edge, which pushes a corner of angle a out by TILE_PAD_PX / sin(a / 2),
+/// under 2 TILE_PAD_PX for the corners of at least 60 degrees seen here;
+/// the octagon around the disk reaches 1 / cos 22.5 - 1 = 0.082 of its
+/// radius (1.04 at most here) beyond it, under 9 px at its distance
+/// (over 5) with a focal length of 494 px. The boxes alone flag tiles
+/// of over 6,400 square pixels (a hundred 8 px tiles) farther than three
+/// times that from any such pixel.
+#[test]
+fn a_quads_image_flags_only_the_tiles_near_it() {
+    let ron = r#"(version: 1,
+        camera: (eye: (1.0, 3.0, 6.0), target: (0.0, 0.5, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 640, height: 360,
+                 aperture_radius: 0.05, focus_distance: 6.0),
+        lights: [Directional(direction: (-0.4, -1.0, -0.5), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.3, 0.2), model: Toon(bands: 4)) },
+        shapes: { "quad": Plane(Quad(half_size: (2.0, 1.0))), "disk": Plane(Disk(radius: 0.8)) },
+        instances: [
+            (shape: "quad", material: "m", transform: (translate: (-0.5, 0.0, 0.0), rotate_deg: (0.0, 35.0, 20.0), scale: (1.0, 1.0, 1.5))),
+            (shape: "disk", material: "m", transform: (translate: (2.0, 1.5, 0.5), rotate_deg: (60.0, -30.0, 0.0), scale: (1.3, 1.0, 0.8))),
+        ],
+    )"#;
+    let scene = Scene::from_ron_str(ron, "test.ron", std::path::Path::new(".")).unwrap();
+    let accel = SceneAccel::build(&scene, &[0, 1]).unwrap();
+    assert!(accel.footprints.iter().all(|f| f.outline.is_some()));
+    let size = (scene.camera.width, scene.camera.height);
+    let depth = depth_range(&scene.camera, scene.bounds());
+    let cases = [
+        (Vec2::new(0.3, 0.7), Vec2::ZERO, 8u32, 1u32),
+        (Vec2::new(0.9, 0.1), Vec2::new(0.6, -0.8), 8, 0),
+        (Vec2::new(0.5, 0.5), Vec2::new(-1.0, 0.0), 16, 4),
+    ];
+    for (case, &(shift, lens, tile, reach)) in cases.iter().enumerate() {
+        let cam = sample_camera(&scene.camera, size, shift, lens, depth);
+        let hit: Vec<Option<u32>> = (0..size.0 * size.1)
+            .map(|i| {
+                let (o, d) = kernel_ray(cam.clip_from_world, size, i % size.0, i / size.0);
+                accel
+                    .closest_hit(o, d, 0.0, f32::INFINITY)
+                    .hit
+                    .map(|h| h.instance)
+            })
+            .collect();
+        let tiles_x = size.0.div_ceil(tile);
+        let near = tile + reach + 2 * TILE_PAD_PX.ceil() as u32 + 1 + 9;
+        // Whether some pixel showing a shape lies within `d` px of tile t.
+        let within = |t: u32, d: u32| {
+            let (tx, ty) = (t % tiles_x * tile, t / tiles_x * tile);
+            let ys = ty.saturating_sub(d)..(ty + tile + d).min(size.1);
+            let xs = tx.saturating_sub(d)..(tx + tile + d).min(size.0);
+            ys.into_iter()
+                .any(|y| xs.clone().any(|x| hit[(y * size.0 + x) as usize].is_some()))
+        };
+        let flags = reached_tiles(
+            &accel.footprints,
+            |_| true,
+            cam.clip_from_world,
+            size,
+            tile,
+            reach,
+        );
+        let lists = primary_tiles(&accel.footprints, |_| true, cam.clip_from_world, size, tile);
+        for (i, h) in hit.iter().enumerate() {
+            let Some(h) = h else { continue };
+            let (x, y) = (i as u32 % size.0, i as u32 / size.0);
+            let t = (y / tile * tiles_x + x / tile) as usize;
+            let list = tile_list(&lists, t).unwrap();
+            assert!(
+                list.contains(h),
+                "case {case}: pixel ({x}, {y}) meets {h}, not in {list:?}"
+            );
+        }
+        for t in 0..flags.len() as u32 {
+            if within(t, reach) {
+                assert_eq!(
+                    flags[t as usize], 1,
+                    "case {case}: tile {t} has a shape within reach"
+                );
+            }
+            if flags[t as usize] == 1 {
+                assert!(
+                    within(t, near),
+                    "case {case}: tile {t} flagged, no shape within {near} px"
+                );
+            }
+        }
+        let boxes = reached_tiles(
+            &accel.world_bounds,
+            |_| true,
+            cam.clip_from_world,
+            size,
+            tile,
+            reach,
+        );
+        let far_out = (0..boxes.len() as u32)
+            .filter(|&t| boxes[t as usize] == 1 && !within(t, 3 * near))
+            .count();
+        // 6,400 square pixels: a hundred 8 px tiles.
+        assert!(
+            far_out as u32 * tile * tile > 6400,
+            "case {case}: the boxes flag {far_out} tiles far from the shapes"
+        );
+    }
+}
+
 /// A record's summary in the tile's flag word (`TILE_RECORD_SHIFT`): 0
 /// for no instance, k + 1 for instance k alone, and "read the record"
 /// for two instances, a walk, or an index whose k + 1 would be taken for
@@ -750,7 +861,9 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_sphere() {
 /// a disk tilted and stretched by a matrix that is not a similarity.
 /// - Looking down from 2.5 above the floor, 640 x 360, outline radius 1,
 ///   8 px tiles, a sub-pixel shift and a lens point: the tile over the
-///   hidden ball and the tile of the disk's centre are claimed, and at
+///   hidden ball, the tile of the disk's centre and the tile of the
+///   centre of the crate's face towards the eye (a box's face, with the
+///   floor it stands on below the tile's hits) are claimed, and at
 ///   least half of the tiles whose every pixel sees the floor are (the
 ///   depth bound, d (tan f + tan g), holds out to about 75 degrees from
 ///   the floor's normal here, where the far edge is at 79).
@@ -796,10 +909,15 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_plane() {
     assert_eq!(
         planes
             .iter()
-            .map(|p| (p.instance, p.disk))
+            .map(|p| (p.instance, p.disk, p.face))
             .collect::<Vec<_>>(),
-        [(0, false), (3, true)],
-        "the floor and the disk are exact planes"
+        [
+            [(0, false, false)].as_slice(),
+            &[(1, false, true); 6],
+            &[(3, true, false)]
+        ]
+        .concat(),
+        "the floor, the crate's six faces and the disk are exact planes"
     );
     let cases = [
         (Vec2::splat(0.5), Vec2::ZERO, 8, 1),
@@ -845,6 +963,18 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_plane() {
         assert!(
             c.centre_claimed,
             "case {case}: the tile of the disk's centre"
+        );
+    }
+    // The crate's face towards the eye (+z turned 25 degrees about y),
+    // 55 px across, 23 degrees from the view; the floor the crate stands
+    // on lies below the tile's hits.
+    let (sin, cos) = 25f32.to_radians().sin_cos();
+    let face_centre = Vec3::new(-0.5 + 0.5 * sin, 0.5, -1.0 + 0.5 * cos);
+    let face = check_smooth_claims(&scene, None, (1, face_centre), plane_proof, &cases[..2]);
+    for (case, c) in face.iter().enumerate() {
+        assert!(
+            c.centre_claimed,
+            "case {case}: the tile of the crate's face centre"
         );
     }
 

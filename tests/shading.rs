@@ -819,8 +819,9 @@ fn tiles_the_cpu_proves_the_smooth_inside_of_a_sphere_give_the_same_image() {
 /// ids equal with the proof on and off. And the proof must agree with the
 /// marks: every tile whose source word only the proof clears is one the
 /// marks, with it off, proved smooth (not OUTLINE_MARK_SEARCH). An
-/// outlined floor quad with its far edge in view, a crate on it and a
-/// tilted, stretched disk, through a small lens, 1.5 px outlines (8 px
+/// outlined floor quad with its far edge in view, a crate on it (a box,
+/// whose faces the proof covers too) and a tilted, stretched disk,
+/// through a small lens, 1.5 px outlines (8 px
 /// tiles, 48 x 27 of them), in raster mode (quads only: the raster pass
 /// draws a disk as a polygon), hybrid and raytrace. The floor fills about
 /// half of the view, and at least 100 tiles are cleared by the proof in

@@ -192,6 +192,32 @@ pub fn world_sphere(shape: &GpuShape, world_from_object: Mat4) -> Option<glam::V
     )
 }
 
+/// Eight points, in order around it, of a flat convex polygon holding an
+/// instance of a quad or disk placed by `world_from_object`: a quad's
+/// corners and the middles of its sides, or the octagon around a disk
+/// (its corners at radius / cos 22.5 degrees); none for other shapes.
+pub fn world_outline(shape: &GpuShape, world_from_object: Mat4) -> Option<[Vec3; 8]> {
+    let disk = match shape.kind {
+        SHAPE_QUAD => false,
+        SHAPE_DISK => true,
+        _ => return None,
+    };
+    let p = shape.params;
+    Some(std::array::from_fn(|i| {
+        let a = i as f32 * std::f32::consts::FRAC_PI_4;
+        let (x, z) = if disk {
+            let r = p[0] / std::f32::consts::FRAC_PI_8.cos();
+            (r * a.cos(), r * a.sin())
+        } else {
+            // The unit square's corners and middles, scaled.
+            let (c, s) = (a.cos(), a.sin());
+            let m = c.abs().max(s.abs());
+            (p[0] * c / m, p[1] * s / m)
+        };
+        world_from_object.transform_point3(Vec3::new(x, 0.0, z))
+    }))
+}
+
 /// The instances that are exactly spheres in the world
 /// (`screen_tiles::ExactSphere`): static spheres (those whose footprint
 /// has a [`world_sphere`]) whose matrix is a similarity (columns of one
@@ -227,34 +253,67 @@ fn exact_spheres(
         .collect()
 }
 
-/// The static instances of quads and disks (`screen_tiles::ExactPlane`):
-/// every hit the kernels find on them lies on one world plane, whatever
-/// their (invertible, affine) matrix.
+/// The flat quads and disks of the static instances
+/// (`screen_tiles::ExactPlane`): quads, disks and the six faces of boxes.
+/// Every hit the kernels find on them lies on one world plane, whatever
+/// their (invertible, affine) matrix: a box's face is where the box test
+/// enters through it, its normal the face's (`box_normal` in
+/// intersect.wgsl picks the axis the hit lies farthest along, the face's
+/// own inside its outline).
 fn exact_planes(
     shapes: &[GpuShape],
     instances: &[(Mat4, Mat4, u32)],
     moving: &[bool],
 ) -> Vec<screen_tiles::ExactPlane> {
-    instances
-        .iter()
-        .enumerate()
-        .filter(|&(k, _)| !moving[k])
-        .filter_map(|(k, &(_, object_from_world, shape))| {
-            let shape = &shapes[shape as usize];
-            let disk = match shape.kind {
-                SHAPE_QUAD => false,
-                SHAPE_DISK => true,
-                _ => return None,
-            };
-            let p = shape.params;
-            Some(screen_tiles::ExactPlane {
-                instance: k,
+    let mut planes = Vec::new();
+    for (k, &(_, object_from_world, shape)) in instances.iter().enumerate() {
+        if moving[k] {
+            continue;
+        }
+        let shape = &shapes[shape as usize];
+        let p = shape.params;
+        let plane = |object_from_world, half: glam::Vec2, disk, face| screen_tiles::ExactPlane {
+            instance: k,
+            object_from_world,
+            half,
+            disk,
+            face,
+        };
+        match shape.kind {
+            SHAPE_QUAD => planes.push(plane(
                 object_from_world,
-                half: glam::Vec2::new(p[0], if disk { p[0] } else { p[1] }),
-                disk,
-            })
-        })
-        .collect()
+                glam::Vec2::new(p[0], p[1]),
+                false,
+                false,
+            )),
+            SHAPE_DISK => planes.push(plane(
+                object_from_world,
+                glam::Vec2::splat(p[0]),
+                true,
+                false,
+            )),
+            SHAPE_BOX => {
+                // The face at x_a = s h_a, in the frame (x_b, s x_a - h_a,
+                // x_c), the other two axes across it.
+                for a in 0..3 {
+                    let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+                    for s in [1.0f32, -1.0] {
+                        // Its columns: where the object's axes go.
+                        let mut cols = [glam::Vec4::ZERO; 4];
+                        cols[a] = glam::Vec4::Y * s;
+                        cols[b] = glam::Vec4::X;
+                        cols[c] = glam::Vec4::Z;
+                        cols[3] = glam::Vec4::new(0.0, -p[a], 0.0, 1.0);
+                        let face_from_object = Mat4::from_cols(cols[0], cols[1], cols[2], cols[3]);
+                        let frame = face_from_object * object_from_world;
+                        planes.push(plane(frame, glam::Vec2::new(p[b], p[c]), false, true));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    planes
 }
 
 /// Builds a mesh's bottom-level BVH, appending its nodes (child indices
@@ -435,6 +494,7 @@ impl SceneAccel {
                 Footprint {
                     bounds: world_bounds[k],
                     sphere: sphere.filter(|_| !moving[k]),
+                    outline: world_outline(shape, world_from_object).filter(|_| !moving[k]),
                 }
             })
             .collect::<Vec<_>>();

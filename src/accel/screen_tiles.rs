@@ -25,7 +25,7 @@
 
 use std::ops::RangeInclusive;
 
-use glam::{DVec3, DVec4, Mat4, Vec2, Vec3, Vec4};
+use glam::{DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec4};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
@@ -60,6 +60,11 @@ pub trait ScreenBound {
     fn world_sphere(&self) -> Option<Vec4> {
         None
     }
+    /// Points of a flat convex polygon holding all of it, in order
+    /// around it, if any.
+    fn world_outline(&self) -> Option<[Vec3; 8]> {
+        None
+    }
 }
 
 impl ScreenBound for Aabb {
@@ -69,12 +74,14 @@ impl ScreenBound for Aabb {
 }
 
 /// An instance's extent as the renderer gives it to the tiles
-/// (`SceneAccel::footprints`): its world box over the whole shutter and,
-/// for static spheres and CSG solids, a world sphere holding it.
+/// (`SceneAccel::footprints`): its world box over the whole shutter; for
+/// static spheres and CSG solids, a world sphere holding it; for static
+/// quads and disks, a flat polygon holding it (`accel::world_outline`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Footprint {
     pub bounds: Aabb,
     pub sphere: Option<Vec4>,
+    pub outline: Option<[Vec3; 8]>,
 }
 
 impl ScreenBound for Footprint {
@@ -83,6 +90,9 @@ impl ScreenBound for Footprint {
     }
     fn world_sphere(&self) -> Option<Vec4> {
         self.sphere
+    }
+    fn world_outline(&self) -> Option<[Vec3; 8]> {
+        self.outline
     }
 }
 
@@ -103,11 +113,13 @@ pub fn primary_tiles(
     let words = PRIMARY_TILE_WORDS as usize;
     let mut out = vec![0u32; tiles.0 * tiles.1 * words];
     let cones = TileCones::new(clip_from_world, size, tile_px, 0);
-    for (k, xs, ys, sphere) in touched_tiles(bounds, seen, clip_from_world, size, tile_px, 0) {
+    for (k, xs, ys, sphere, polygon) in
+        touched_tiles(bounds, seen, clip_from_world, size, tile_px, 0)
+    {
         let sphere = cones.sphere(sphere);
         for ty in ys {
             for tx in xs.clone() {
-                if !cones.meets(&sphere, tx, ty) {
+                if !cones.meets(&sphere, tx, ty) || !polygon.meets(&cones, tx, ty) {
                     continue;
                 }
                 let record = &mut out[(ty * tiles.0 + tx) * words..][..words];
@@ -150,8 +162,9 @@ fn tile_grid(size: (u32, u32), tile_px: u32) -> (usize, usize) {
 /// For each box k of `bounds` with `pick(k)` that may show on the image
 /// (grown by [`BOX_PAD_REL`], projected by `clip_from_world`: [`pixel_rect`]),
 /// k, the tiles, across and down, that its rectangle grown by `reach_px`
-/// touches, and its sphere, if any (grown as the box is), which
-/// [`TileCones::meets`] tests those tiles against.
+/// touches, its sphere, if any (grown as the box is), which
+/// [`TileCones::meets`] tests those tiles against, and its flat polygon's
+/// image ([`ScreenPolygon`]), which [`ScreenPolygon::meets`] tests them against.
 fn touched_tiles<'a, B: ScreenBound>(
     bounds: &'a [B],
     pick: impl Fn(usize) -> bool + 'a,
@@ -165,6 +178,7 @@ fn touched_tiles<'a, B: ScreenBound>(
         RangeInclusive<usize>,
         RangeInclusive<usize>,
         Option<Vec4>,
+        ScreenPolygon,
     ),
 > + 'a {
     let tiles = tile_grid(size, tile_px);
@@ -180,8 +194,122 @@ fn touched_tiles<'a, B: ScreenBound>(
             let xs = tile(lo.x - reach, tiles.0)..=tile(hi.x + reach, tiles.0);
             let ys = tile(lo.y - reach, tiles.1)..=tile(hi.y + reach, tiles.1);
             let sphere = b.world_sphere().map(|s| grown_sphere(s, eye));
-            Some((k, xs, ys, sphere))
+            let polygon = ScreenPolygon::new(b, eye, clip_from_world, size);
+            Some((k, xs, ys, sphere, polygon))
         })
+}
+
+/// The image of an instance's flat polygon
+/// ([`ScreenBound::world_outline`]) in pixel points (as [`pixel_rect`]),
+/// as the half-planes n . p <= c holding it, grown by [`TILE_PAD_PX`];
+/// none (every tile may meet it) without a polygon, or where a point of
+/// it lies before the near plane. So that a kernel's hit, off the surface
+/// by its f32 rounding, still projects inside, the polygon is first made
+/// a flat prism: its points moved by [`BOX_PAD_REL`] of the largest
+/// coordinate of it and of the eye, outward from its centre and both
+/// ways along its normal. A perspective projection maps the prism's
+/// points in front of the eye into the convex hull of its corners'
+/// images.
+struct ScreenPolygon {
+    edges: Vec<(DVec2, f64)>,
+}
+
+impl ScreenPolygon {
+    fn new(
+        b: &impl ScreenBound,
+        eye: Vec3,
+        clip_from_world: Mat4,
+        size: (u32, u32),
+    ) -> ScreenPolygon {
+        let none = ScreenPolygon { edges: Vec::new() };
+        let Some(outline) = b.world_outline() else {
+            return none;
+        };
+        let outline = outline.map(|c| c.as_dvec3());
+        let scale = (outline.iter())
+            .fold(eye.abs().as_dvec3(), |m, c| m.max(c.abs()))
+            .max_element();
+        let pad = f64::from(BOX_PAD_REL) * scale;
+        let centre = outline.iter().sum::<DVec3>() / outline.len() as f64;
+        let normal = (outline[2] - outline[0])
+            .cross(outline[4] - outline[0])
+            .normalize()
+            * pad;
+        let clip = clip_from_world.as_dmat4();
+        let (w, h) = (f64::from(size.0), f64::from(size.1));
+        let mut points = Vec::with_capacity(2 * outline.len());
+        for c in outline {
+            let out = c + (c - centre).normalize_or_zero() * pad * 2.0;
+            for p in [out + normal, out - normal] {
+                let q = clip * p.extend(1.0);
+                // Before the near plane (NDC z < 0), or not a number.
+                if !(q.z >= 0.0 && q.w > 0.0) {
+                    return none;
+                }
+                let ndc = q.truncate().truncate() / q.w;
+                points.push(DVec2::new(
+                    (ndc.x + 1.0) * 0.5 * w - 0.5,
+                    (1.0 - ndc.y) * 0.5 * h - 0.5,
+                ));
+            }
+        }
+        ScreenPolygon {
+            edges: convex_hull(&mut points)
+                .into_iter()
+                .map(|(n, c)| (n, c + f64::from(TILE_PAD_PX)))
+                .collect(),
+        }
+    }
+
+    /// Whether tile (tx, ty) of `cones`, grown by their reach, may meet
+    /// the image: no edge has the whole grown tile outside it.
+    fn meets(&self, cones: &TileCones, tx: usize, ty: usize) -> bool {
+        let (lo, hi) = cones.tile_rect(tx, ty);
+        self.edges.iter().all(|&(n, c)| {
+            let x = if n.x > 0.0 { lo.x } else { hi.x };
+            let y = if n.y > 0.0 { lo.y } else { hi.y };
+            n.x * x + n.y * y <= c
+        })
+    }
+}
+
+/// The convex hull of `points` (Andrew's monotone chain) as its edges'
+/// outward unit normals n and offsets c (n . p <= c inside); none where
+/// the hull has no area (then no edge rules a tile out).
+fn convex_hull(points: &mut [DVec2]) -> Vec<(DVec2, f64)> {
+    points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
+    let mut hull: Vec<DVec2> = Vec::with_capacity(2 * points.len());
+    for &p in points.iter() {
+        while hull.len() >= 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(p);
+    }
+    let lower = hull.len() + 1;
+    for &p in points.iter().rev().skip(1) {
+        while hull.len() >= lower && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(p);
+    }
+    // The last point is the first again.
+    hull.pop();
+    let area: f64 = (0..hull.len())
+        .map(|i| hull[i].perp_dot(hull[(i + 1) % hull.len()]))
+        .sum();
+    if hull.len() < 3 || area.abs() < 1e-9 {
+        return Vec::new();
+    }
+    // Counter-clockwise (positive area): the inside lies to the left of
+    // each edge, so the outward normal is the edge turned clockwise.
+    (0..hull.len())
+        .filter_map(|i| {
+            let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+            let n = DVec2::new(b.y - a.y, a.x - b.x).normalize_or_zero() * area.signum();
+            (n != DVec2::ZERO).then(|| (n, n.dot(a)))
+        })
+        .collect()
 }
 
 /// The cones of rays through the tiles of one sample's image, for testing
@@ -212,6 +340,8 @@ struct TileCones {
     rays: Option<(DVec3, [DVec3; 3])>,
     /// A tile's centre pixel point is (t + 0.5) tile_px - 0.5 in x and y.
     tile_px: f64,
+    /// The reach the tiles are grown by (pixels).
+    reach: f64,
     /// The bound on every tile's half-angle (radians).
     half_angle: f64,
     /// A bound on the angle between the rays of two neighbouring pixels
@@ -254,9 +384,17 @@ impl TileCones {
         TileCones {
             rays: perspective.then_some((eye, [a, b, c])),
             tile_px: f64::from(tile_px),
+            reach: f64::from(reach_px),
             half_angle,
             pixel_angle: 1.01 * b.length().max(c.length()) / distance,
         }
+    }
+
+    /// The pixel points of tile (tx, ty), grown by the reach: the lowest
+    /// and highest.
+    fn tile_rect(&self, tx: usize, ty: usize) -> (DVec2, DVec2) {
+        let lo = DVec2::new(tx as f64, ty as f64) * self.tile_px - self.reach;
+        (lo, lo + (self.tile_px - 1.0 + 2.0 * self.reach))
     }
 
     /// The unit axis of tile (tx, ty)'s cone, from the eye.
@@ -334,16 +472,17 @@ pub fn reached_tiles(
     let tiles = tile_grid(size, tile_px);
     let mut out = vec![0u32; tiles.0 * tiles.1];
     let cones = TileCones::new(clip_from_world, size, tile_px, reach_px);
-    for (_, xs, ys, sphere) in touched_tiles(bounds, pick, clip_from_world, size, tile_px, reach_px)
+    for (_, xs, ys, sphere, polygon) in
+        touched_tiles(bounds, pick, clip_from_world, size, tile_px, reach_px)
     {
         let sphere = cones.sphere(sphere);
         for ty in ys {
-            if sphere.is_none() {
+            if sphere.is_none() && polygon.edges.is_empty() {
                 out[ty * tiles.0 + xs.start()..=ty * tiles.0 + xs.end()].fill(1);
                 continue;
             }
             for tx in xs.clone() {
-                if cones.meets(&sphere, tx, ty) {
+                if cones.meets(&sphere, tx, ty) && polygon.meets(&cones, tx, ty) {
                     out[ty * tiles.0 + tx] = 1;
                 }
             }
@@ -352,9 +491,16 @@ pub fn reached_tiles(
     out
 }
 
-/// How many (sphere, other instance) pairs [`smooth_sphere_tiles`] looks
-/// at per sample, at most: about a millisecond of the CPU's time.
-pub const SMOOTH_SPHERE_PAIRS: usize = 1 << 16;
+/// How many (sphere or plane, other instance) pairs
+/// [`smooth_sphere_tiles`] and [`smooth_plane_tiles`] each look at per
+/// sample, at most: about a millisecond of the CPU's time.
+pub const SMOOTH_PAIRS: usize = 1 << 16;
+
+/// How many instances that may come first in its tiles
+/// [`smooth_plane_tiles`] tests a plane's tile against one by one (the
+/// tile's own hits beyond a face of each one's box); with more, the
+/// tiles they reach are not claimed.
+pub const SMOOTH_PLANE_BLOCKERS: usize = 16;
 
 /// An instance that is exactly a sphere in the world: a static sphere
 /// shape under a similarity (rotation, uniform scale, translation), so
@@ -449,7 +595,7 @@ pub fn smooth_sphere_tiles(
     // Per tile, the last sphere (index into `spheres`) for which some
     // other instance may come first there.
     let mut blocked = vec![usize::MAX; out.len()];
-    let mut budget = SMOOTH_SPHERE_PAIRS;
+    let mut budget = SMOOTH_PAIRS;
     for (n, s) in spheres.iter().enumerate() {
         let c = s.centre.as_dvec3();
         let radius = f64::from(s.radius);
@@ -503,14 +649,14 @@ pub fn smooth_sphere_tiles(
             });
             j != s.instance && !(beyond || apart)
         };
-        for (_, xs, ys, _) in
+        for (_, xs, ys, _, _) in
             touched_tiles(bounds, in_way, clip_from_world, size, tile_px, reach_px)
         {
             for ty in ys {
                 blocked[ty * tiles.0 + xs.start()..=ty * tiles.0 + xs.end()].fill(n);
             }
         }
-        let Some((_, xs, ys, _)) = touched_tiles(
+        let Some((_, xs, ys, _, _)) = touched_tiles(
             bounds,
             |j| j == s.instance,
             clip_from_world,
@@ -556,12 +702,12 @@ fn near_depth(clip_from_world: Mat4, eye: DVec3, forward: DVec3) -> f64 {
     (p.truncate() / p.w - eye).dot(forward)
 }
 
-/// An instance that is exactly a flat quad or disk in the world: a static
-/// plane shape (`SHAPE_QUAD`, `SHAPE_DISK`) under its matrix, any
-/// invertible affine one. The kernels meet it where a ray, taken into
-/// object space by `object_from_world`, crosses y = 0 inside the outline,
-/// so all its hits lie on one world plane with one normal. For
-/// [`smooth_plane_tiles`].
+/// A flat quad or disk of an instance in the world: a static plane shape
+/// (`SHAPE_QUAD`, `SHAPE_DISK`) or a face of a static box, under the
+/// instance's matrix, any invertible affine one. The kernels meet it
+/// where a ray, taken by `object_from_world` into the frame where the
+/// plane is y = 0, crosses y = 0 inside the outline, so all its hits lie
+/// on one world plane with one normal. For [`smooth_plane_tiles`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExactPlane {
     /// Its index among the footprints (the GPU instance index).
@@ -570,13 +716,18 @@ pub struct ExactPlane {
     /// A quad's half sizes in x and z, or a disk's radius in both.
     pub half: Vec2,
     pub disk: bool,
+    /// A face of a box, its outside at y > 0: seen only from there, where
+    /// a ray meeting it inside its outline enters the box through it, so
+    /// that the box's other faces cannot come first.
+    pub face: bool,
 }
 
 /// Per tile of `tile_px` over `size`, row by row: true where the CPU
 /// proves what the outline marks would prove texel by texel, that the
 /// tile and its halo of `reach_px` pixels are the smooth inside of one
-/// plane of `planes`, with half of `steps` to spare for the kernels'
-/// rounding, as [`smooth_sphere_tiles`] does for spheres.
+/// plane of `planes` (a quad, a disk or a box's face), with half of
+/// `steps` to spare for the kernels' rounding, as [`smooth_sphere_tiles`]
+/// does for spheres.
 ///
 /// The rays of a tile and its halo pass through the eye and the far-plane
 /// points of its pixel rectangle grown by the reach and [`TILE_PAD_PX`].
@@ -588,9 +739,10 @@ pub struct ExactPlane {
 /// onto the convex hull of the four hits. Nothing comes first where no
 /// other instance's rectangle reaches the tile, unless that instance's
 /// box lies wholly on the far side of the plane from the eye, or beyond
-/// one face of its own box from both the eye and the plane's box (every
-/// segment from the eye to the plane then stays on the near side of that
-/// face).
+/// one face of its own box from both the eye and the four hits (every
+/// segment from the eye to a hit of the tile then stays on the near side
+/// of that face: a box resting on a floor, seen from above). Planes are
+/// tried in order until [`SMOOTH_PAIRS`] is spent.
 ///
 /// Then, with n the plane's unit normal facing away from the eye, h the
 /// eye's distance to the plane and v a ray's unit direction, the hit's
@@ -625,14 +777,21 @@ pub fn smooth_plane_tiles(
     // Per tile, the last plane (index into `planes`) for which some other
     // instance may come first there.
     let mut blocked = vec![usize::MAX; out.len()];
+    let mut budget = SMOOTH_PAIRS;
     for (n, plane) in planes.iter().enumerate() {
+        // Each plane tried costs a look at every other instance.
+        if budget < bounds.len() {
+            break;
+        }
+        budget -= bounds.len();
         let m = plane.object_from_world.as_dmat4();
         // The eye in object space, and the plane's normal in the world:
         // the gradient of the object-space y, facing away from the eye.
         let o = m.transform_point3(eye);
         let gradient = DVec3::new(m.x_axis.y, m.y_axis.y, m.z_axis.y);
         let normal = -o.y.signum() * gradient.normalize();
-        if !normal.is_finite() || o.y.abs() <= 1e-6 * o.abs().max_element() {
+        let behind = plane.face && o.y < 0.0;
+        if !normal.is_finite() || o.y.abs() <= 1e-6 * o.abs().max_element() || behind {
             continue;
         }
         // The outline, shrunk by a relative 1e-5 for the kernels' f32
@@ -646,30 +805,43 @@ pub fn smooth_plane_tiles(
             }
         };
         // Another instance cannot come first where its box lies wholly on
-        // the plane's far side from the eye, or beyond one face of its own
-        // box from both the eye and the plane's own box (a floor under a
-        // wall).
-        let own = bounds[plane.instance].world_box();
-        let (own_lo, own_hi) = (own.min.as_dvec3(), own.max.as_dvec3());
-        let out_of_way = |j: usize| {
+        // the plane's far side from the eye; nor in a tile where the eye
+        // and the tile's hits lie beyond one face of its box (a floor
+        // under a wall standing on it), tested tile by tile below.
+        let beyond = |j: usize| {
             let b = grown_box(bounds[j].world_box(), eye.as_vec3());
-            let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-            let beyond =
-                (b.corners().iter()).all(|c| m.transform_point3(c.as_dvec3()).y * o.y < 0.0);
-            let apart = (0..3).any(|a| {
-                (eye[a] > hi[a] && own_lo[a] > hi[a]) || (eye[a] < lo[a] && own_hi[a] < lo[a])
-            });
-            beyond || apart
+            (b.corners().iter()).all(|c| m.transform_point3(c.as_dvec3()).y * o.y < 0.0)
         };
-        let in_way = |j: usize| j != plane.instance && !out_of_way(j);
-        for (_, xs, ys, _) in
+        let in_way = |j: usize| j != plane.instance && !beyond(j);
+        let mut blockers = Vec::new();
+        for (j, xs, ys, _, _) in
             touched_tiles(bounds, in_way, clip_from_world, size, tile_px, reach_px)
         {
-            for ty in ys {
+            for ty in ys.clone() {
                 blocked[ty * tiles.0 + xs.start()..=ty * tiles.0 + xs.end()].fill(n);
             }
+            let b = grown_box(bounds[j].world_box(), eye.as_vec3());
+            blockers.push((xs, ys, b.min.as_dvec3(), b.max.as_dvec3()));
         }
-        let Some((_, xs, ys, _)) = touched_tiles(
+        // Whether no instance may come first on the way to `hits` (the
+        // tile's corner hits, around every hit of its rays): each one
+        // whose rectangle reaches tile (tx, ty) lies beyond a face of its
+        // box from the eye and all of them, so every segment from the eye
+        // to a hit of the tile stays on this side of that face.
+        let clear = |tx: usize, ty: usize, hits: &[DVec3; 4]| {
+            if blocked[ty * tiles.0 + tx] != n {
+                return true;
+            }
+            blockers.len() <= SMOOTH_PLANE_BLOCKERS
+                && blockers.iter().all(|(xs, ys, lo, hi)| {
+                    !(xs.contains(&tx) && ys.contains(&ty))
+                        || (0..3).any(|a| {
+                            (eye[a] > hi[a] && hits.iter().all(|h| h[a] > hi[a]))
+                                || (eye[a] < lo[a] && hits.iter().all(|h| h[a] < lo[a]))
+                        })
+                })
+        };
+        let Some((_, xs, ys, _, _)) = touched_tiles(
             bounds,
             |j| j == plane.instance,
             clip_from_world,
@@ -682,9 +854,6 @@ pub fn smooth_plane_tiles(
         };
         for ty in ys {
             for tx in xs.clone() {
-                if blocked[ty * tiles.0 + tx] == n {
-                    continue;
-                }
                 let x0 = (tx as f64) * f64::from(tile_px) - grow;
                 let y0 = (ty as f64) * f64::from(tile_px) - grow;
                 let corners = [
@@ -693,18 +862,23 @@ pub fn smooth_plane_tiles(
                     (x0, y0 + span),
                     (x0 + span, y0 + span),
                 ];
-                let meets_inside = corners.iter().all(|&(x, y)| {
+                // The corner rays' hits on the plane (world), where they
+                // meet it inside its outline beyond the near plane.
+                let mut hits = [DVec3::ZERO; 4];
+                let meets_inside = corners.iter().zip(&mut hits).all(|(&(x, y), hit)| {
                     let Some(v) = cones.ray(x, y) else {
                         return false;
                     };
                     let dv = m.transform_vector3(v);
                     let t = -o.y / dv.y;
+                    *hit = eye + v * t;
                     t > 0.0
                         && t.is_finite()
                         && inside(o + dv * t)
                         && (v * t).dot(forward) > near * 1.001
                 });
-                let Some(axis) = cones.axis(tx, ty).filter(|_| meets_inside) else {
+                let claimable = meets_inside && clear(tx, ty, &hits);
+                let Some(axis) = cones.axis(tx, ty).filter(|_| claimable) else {
                     continue;
                 };
                 let (sin_f, cos_f) = cones.widest(axis, forward);
