@@ -317,10 +317,39 @@ fn a_balls_bounding_sphere_flags_only_the_tiles_near_its_disk() {
         })
         .collect();
     let (tile, reach) = (8u32, 1u32);
-    let tiles_x = size.0.div_ceil(tile);
     // The farthest (in x or y) a flagged tile may lie from a ball pixel.
     let near = tile + reach + TILE_PAD_PX.ceil() as u32 + 1;
-    // Whether some ball pixel lies within `d` px (x and y) of tile t.
+    let far_out = flags_stay_near_hits(
+        &accel,
+        cam.clip_from_world,
+        size,
+        &hit,
+        (tile, reach, near),
+        "the ball",
+    );
+    assert!(
+        far_out > 100,
+        "the box flags {far_out} tiles far from the ball"
+    );
+}
+
+/// Checks `reached_tiles` with `accel`'s footprints, for one sample's
+/// projection `clip`, against `hit` (per pixel, whether its ray meets
+/// `what`), with tiles of `tile` px and outline radius `reach`: it flags
+/// every tile with a hit pixel within `reach` (conservative) and only
+/// tiles with one within `near` px (tight), in x and y. Returns how many
+/// tiles the boxes alone (`SceneAccel::world_bounds`) flag with no hit
+/// pixel within 3 `near`.
+fn flags_stay_near_hits(
+    accel: &SceneAccel,
+    clip: Mat4,
+    size: (u32, u32),
+    hit: &[bool],
+    (tile, reach, near): (u32, u32, u32),
+    what: &str,
+) -> usize {
+    let tiles_x = size.0.div_ceil(tile);
+    // Whether some hit pixel lies within `d` px (x and y) of tile t.
     let within = |t: u32, d: u32| {
         let (tx, ty) = (t % tiles_x * tile, t / tiles_x * tile);
         let ys = ty.saturating_sub(d)..(ty + tile + d).min(size.1);
@@ -328,42 +357,25 @@ fn a_balls_bounding_sphere_flags_only_the_tiles_near_its_disk() {
         ys.into_iter()
             .any(|y| xs.clone().any(|x| hit[(y * size.0 + x) as usize]))
     };
-    let spheres = reached_tiles(
-        &accel.footprints,
-        |_| true,
-        cam.clip_from_world,
-        size,
-        tile,
-        reach,
-    );
-    for t in 0..spheres.len() as u32 {
-        // Conservative: a ball pixel within reach flags the tile.
+    let flags = reached_tiles(&accel.footprints, |_| true, clip, size, tile, reach);
+    for t in 0..flags.len() as u32 {
         if within(t, reach) {
-            assert_eq!(spheres[t as usize], 1, "tile {t} has the ball within reach");
+            assert_eq!(
+                flags[t as usize], 1,
+                "tile {t} ({tile} px, reach {reach}) has {what} within reach"
+            );
         }
-        // Tight.
-        if spheres[t as usize] == 1 {
+        if flags[t as usize] == 1 {
             assert!(
                 within(t, near),
-                "tile {t} is flagged, no ball pixel within {near} px"
+                "tile {t} ({tile} px, reach {reach}) is flagged, {what} not within {near} px"
             );
         }
     }
-    let boxes = reached_tiles(
-        &accel.world_bounds,
-        |_| true,
-        cam.clip_from_world,
-        size,
-        tile,
-        reach,
-    );
-    let far_out = (0..boxes.len() as u32)
+    let boxes = reached_tiles(&accel.world_bounds, |_| true, clip, size, tile, reach);
+    (0..boxes.len() as u32)
         .filter(|&t| boxes[t as usize] == 1 && !within(t, 3 * near))
-        .count();
-    assert!(
-        far_out > 100,
-        "the box flags {far_out} tiles far from the ball"
-    );
+        .count()
 }
 
 /// A tilted, stretched quad and a disk (not under a similarity), whole in
@@ -417,22 +429,6 @@ fn a_quads_image_flags_only_the_tiles_near_it() {
             .collect();
         let tiles_x = size.0.div_ceil(tile);
         let near = tile + reach + 2 * TILE_PAD_PX.ceil() as u32 + 1 + 9;
-        // Whether some pixel showing a shape lies within `d` px of tile t.
-        let within = |t: u32, d: u32| {
-            let (tx, ty) = (t % tiles_x * tile, t / tiles_x * tile);
-            let ys = ty.saturating_sub(d)..(ty + tile + d).min(size.1);
-            let xs = tx.saturating_sub(d)..(tx + tile + d).min(size.0);
-            ys.into_iter()
-                .any(|y| xs.clone().any(|x| hit[(y * size.0 + x) as usize].is_some()))
-        };
-        let flags = reached_tiles(
-            &accel.footprints,
-            |_| true,
-            cam.clip_from_world,
-            size,
-            tile,
-            reach,
-        );
         let lists = primary_tiles(&accel.footprints, |_| true, cam.clip_from_world, size, tile);
         for (i, h) in hit.iter().enumerate() {
             let Some(h) = h else { continue };
@@ -444,31 +440,15 @@ fn a_quads_image_flags_only_the_tiles_near_it() {
                 "case {case}: pixel ({x}, {y}) meets {h}, not in {list:?}"
             );
         }
-        for t in 0..flags.len() as u32 {
-            if within(t, reach) {
-                assert_eq!(
-                    flags[t as usize], 1,
-                    "case {case}: tile {t} has a shape within reach"
-                );
-            }
-            if flags[t as usize] == 1 {
-                assert!(
-                    within(t, near),
-                    "case {case}: tile {t} flagged, no shape within {near} px"
-                );
-            }
-        }
-        let boxes = reached_tiles(
-            &accel.world_bounds,
-            |_| true,
+        let shown: Vec<bool> = hit.iter().map(Option::is_some).collect();
+        let far_out = flags_stay_near_hits(
+            &accel,
             cam.clip_from_world,
             size,
-            tile,
-            reach,
+            &shown,
+            (tile, reach, near),
+            "a shape",
         );
-        let far_out = (0..boxes.len() as u32)
-            .filter(|&t| boxes[t as usize] == 1 && !within(t, 3 * near))
-            .count();
         // 6,400 square pixels: a hundred 8 px tiles.
         assert!(
             far_out as u32 * tile * tile > 6400,
