@@ -264,7 +264,7 @@ impl ScreenPolygon {
     /// Whether tile (tx, ty) of `cones`, grown by their reach, may meet
     /// the image: no edge has the whole grown tile outside it.
     fn meets(&self, cones: &TileCones, tx: usize, ty: usize) -> bool {
-        let (lo, hi) = cones.tile_rect(tx, ty);
+        let (lo, hi) = cones.tile_rect(tx, ty, 0.0);
         self.edges.iter().all(|&(n, c)| {
             let x = if n.x > 0.0 { lo.x } else { hi.x };
             let y = if n.y > 0.0 { lo.y } else { hi.y };
@@ -390,11 +390,12 @@ impl TileCones {
         }
     }
 
-    /// The pixel points of tile (tx, ty), grown by the reach: the lowest
-    /// and highest.
-    fn tile_rect(&self, tx: usize, ty: usize) -> (DVec2, DVec2) {
-        let lo = DVec2::new(tx as f64, ty as f64) * self.tile_px - self.reach;
-        (lo, lo + (self.tile_px - 1.0 + 2.0 * self.reach))
+    /// The pixel points of tile (tx, ty), grown by the reach and `pad`:
+    /// the lowest and highest.
+    fn tile_rect(&self, tx: usize, ty: usize, pad: f64) -> (DVec2, DVec2) {
+        let grow = self.reach + pad;
+        let lo = DVec2::new(tx as f64, ty as f64) * self.tile_px - grow;
+        (lo, lo + (self.tile_px - 1.0 + 2.0 * grow))
     }
 
     /// The unit axis of tile (tx, ty)'s cone, from the eye.
@@ -772,8 +773,6 @@ pub fn smooth_plane_tiles(
     };
     let forward = forward.as_dvec3().normalize();
     let near = near_depth(clip_from_world, eye, forward);
-    let grow = f64::from(reach_px) + f64::from(TILE_PAD_PX);
-    let span = f64::from(tile_px) - 1.0 + 2.0 * grow;
     // Per tile, the last plane (index into `planes`) for which some other
     // instance may come first there.
     let mut blocked = vec![usize::MAX; out.len()];
@@ -854,14 +853,10 @@ pub fn smooth_plane_tiles(
         };
         for ty in ys {
             for tx in xs.clone() {
-                let x0 = (tx as f64) * f64::from(tile_px) - grow;
-                let y0 = (ty as f64) * f64::from(tile_px) - grow;
-                let corners = [
-                    (x0, y0),
-                    (x0 + span, y0),
-                    (x0, y0 + span),
-                    (x0 + span, y0 + span),
-                ];
+                // The tile's rays, as its cone's: its rectangle grown by the
+                // reach and the padding.
+                let (lo, hi) = cones.tile_rect(tx, ty, f64::from(TILE_PAD_PX));
+                let corners = [(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)];
                 // The corner rays' hits on the plane (world), where they
                 // meet it inside its outline beyond the near plane.
                 let mut hits = [DVec3::ZERO; 4];
