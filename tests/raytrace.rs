@@ -561,6 +561,55 @@ fn pipeline_keys_predict_a_change_and_the_warm_up_draws_with_them() {
     assert_eq!(r.keys_for_edit(&more_lights), None);
 }
 
+/// A definition no instance shows (a CSG solid with a mesh leaf and a toon
+/// leaf material, a glossy mirror material, an outlined toon material)
+/// chooses no code: the pipelines, the kernels' private array sizes and
+/// the uploaded triangles are those of a scene whose unused definitions
+/// are a sphere and plain materials. Showing the
+/// mirror on the ball does choose other code (reflections), so the keys
+/// tell such scenes apart.
+#[test]
+fn definitions_no_instance_shows_choose_no_code() {
+    use celray::render::Renderer;
+    let gpu = gpu();
+    let ron = |shapes: &str, materials: &str, ball: &str| {
+        format!(
+            r#"(version: 1,
+            camera: (eye: (0.0, 3.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 16, height: 16),
+            lights: [Directional(direction: (0.0, -1.0, 0.0), color: (1.0, 1.0, 1.0), intensity: 0.8)],
+            materials: {{ "floor": (base_color: (0.5, 0.5, 0.5), model: BlinnPhong){materials} }},
+            shapes: {{ "floor": Plane(Quad(half_size: (5.0, 5.0))), "ball": Sphere(radius: 0.5){shapes} }},
+            instances: [(shape: "floor", material: "floor"), (shape: "ball", material: "{ball}", transform: (translate: (0.0, 1.0, 0.0)))],
+        )"#
+        )
+    };
+    let shapes = r#", "solid": Difference(Mesh(path: "assets/models/spot/spot_triangulated.obj"), Cylinder(radius: 0.2, height: 3.0, material: "toon"))"#;
+    let materials = r#", "mirror": (base_color: (0.9, 0.9, 0.9), model: BlinnPhong, reflectivity: 0.8, roughness: 0.2),
+        "toon": (base_color: (0.2, 0.4, 0.8), model: Toon(bands: 5), outline_width_px: 3.0)"#;
+    // The plain scene defines as many shapes and materials (the material
+    // table's size is part of the keys), of kinds its instances show.
+    let plain = scene(&ron(
+        r#", "solid": Sphere(radius: 0.5)"#,
+        r#", "mirror": (base_color: (0.9, 0.9, 0.9), model: BlinnPhong),
+        "toon": (base_color: (0.2, 0.4, 0.8), model: BlinnPhong)"#,
+        "floor",
+    ));
+    let unused = scene(&ron(shapes, materials, "floor"));
+    let mirrored = scene(&ron(shapes, materials, "mirror"));
+    for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+        let chosen = |s: &Scene| {
+            let r = Renderer::new(&gpu, s.clone(), settings(s, mode)).unwrap();
+            let accel = &r.scene_buffers().accel;
+            (r.pipeline_keys(), accel.sizes, accel.triangles.len())
+        };
+        let plain = chosen(&plain);
+        assert_eq!(chosen(&unused), plain, "{mode:?}: unused definitions");
+        if mode != RenderMode::Raster {
+            assert_ne!(chosen(&mirrored).0, plain.0, "{mode:?}: a mirror shown");
+        }
+    }
+}
+
 /// Shadow rays go only to the lights that cast shadows, each to its own
 /// light, past the first 32 lights too (the trace kernel loops over a
 /// per-pipeline mask of lights 0-31 and tests lights from 32 on one by
@@ -847,7 +896,7 @@ fn an_empty_scene_shows_only_its_background() {
     )"#;
     let scene = Scene::from_ron_str(ron, "empty.ron", std::path::Path::new(".")).unwrap();
     let want = [0.25f32, 0.5, 0.75].map(srgb8);
-    for mode in [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace] {
+    for mode in [RenderMode::Raster, RenderMode::Raytrace] {
         let r = rendered(&gpu, scene.clone(), settings(&scene, mode));
         assert_eq!(r.overflow_pixels(&gpu).unwrap(), 0, "{mode:?}: overflow");
         let img = r.read_srgb8(&gpu).unwrap();
@@ -896,7 +945,7 @@ fn uniform_table_copies_draw_what_the_storage_buffers_draw() {
     ];
     for (file, uniform, top_nodes) in cases {
         let scene = Scene::load(&dir.join(file)).unwrap();
-        for mode in [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace] {
+        for mode in [RenderMode::Raster, RenderMode::Raytrace] {
             let settings = RenderSettings {
                 width: 96,
                 height: 54,

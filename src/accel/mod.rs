@@ -409,6 +409,12 @@ impl SceneAccel {
         let mut csg_leaves = Vec::new();
         let mut max_blas_depth = 0;
         let mut triangle_sources = Vec::new();
+        // A shape no instance shows keeps its slot (instances name shapes
+        // by index) but gets no bottom level or CSG program: no ray can
+        // reach one, so it would only lengthen the buffers and the
+        // kernels' private arrays.
+        let mut used = vec![false; scene.shapes.len()];
+        scene.used_shapes().for_each(|(id, _)| used[id] = true);
         for (id, shape) in scene.shapes.iter().enumerate() {
             let (kind, params) = shape_params(shape);
             let mut gpu_shape = GpuShape {
@@ -426,6 +432,10 @@ impl SceneAccel {
                 max: hi + pad,
             });
             let name = scene.shape_names.get(id).cloned().unwrap_or_default();
+            if !used[id] {
+                shapes.push(gpu_shape);
+                continue;
+            }
             if let Shape::Mesh(mesh) = shape {
                 let mut corners = Vec::new();
                 gpu_shape.blas_root = append_mesh_blas_with_sources(

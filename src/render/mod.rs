@@ -66,12 +66,12 @@ pub const PASS_NAMES: [&str; 5] = [
     "reproject",
 ];
 
-/// The widest outline of any of `scene`'s materials, in pixels, capped at
-/// the accumulate pass's search radius.
+/// The widest outline of `scene`'s instances (an outline's width is its
+/// instance's material's, a CSG leaf's material has none of its own), in
+/// pixels, capped at the accumulate pass's search radius.
 fn max_outline_px(scene: &Scene) -> f32 {
-    scene
-        .materials
-        .iter()
+    let materials = scene.instances.iter().map(|i| &scene.materials[i.material]);
+    materials
         .map(|m| m.outline_width_px)
         .fold(0.0f32, f32::max)
         .min(crate::gpu::twins::MAX_OUTLINE_RADIUS as f32)

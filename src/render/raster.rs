@@ -95,7 +95,7 @@ impl RasterPass {
     pub fn variant_of(scene: &Scene, buffers: &SceneBuffers, mode: RenderMode) -> RasterVariant {
         RasterVariant {
             textures: buffers.uses_textures,
-            shading: ShadingVariant::of(&scene.materials, &scene.lights),
+            shading: ShadingVariant::of(scene),
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
             shade: mode == RenderMode::Raster,

@@ -238,7 +238,11 @@ impl Default for ShadingVariant {
 }
 
 impl ShadingVariant {
-    pub fn of(materials: &[Material], lights: &[Light]) -> ShadingVariant {
+    /// The shading code the materials some surface of `scene` shows and
+    /// its lights need.
+    pub fn of(scene: &Scene) -> ShadingVariant {
+        let materials: Vec<&Material> = scene.used_materials().collect();
+        let lights = &scene.lights;
         let most = materials
             .iter()
             .filter_map(|m| match &m.model {
@@ -933,18 +937,25 @@ mod tests {
         assert_eq!(highlight_cos(0.0, 32.0), 0.0);
     }
 
-    fn shading_of(materials: &str, lights: &str) -> [(&'static str, f64); 3] {
+    /// The shading constants of a scene with `materials` and `lights`
+    /// whose instances show the materials named `shown`.
+    fn shading_of(materials: &str, lights: &str, shown: &[&str]) -> [(&'static str, f64); 3] {
+        let instances: Vec<String> = shown
+            .iter()
+            .map(|m| format!(r#"(shape: "s", material: "{m}")"#))
+            .collect();
+        let instances = instances.join(", ");
         let ron = format!(
             r#"(version: 1,
                 camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 8, height: 8),
                 lights: [{lights}],
                 materials: {{ {materials} }},
                 shapes: {{ "s": Sphere(radius: 1.0) }},
-                instances: [(shape: "s", material: "a")],
+                instances: [{instances}],
             )"#
         );
         let scene = Scene::from_ron_str(&ron, "test", std::path::Path::new(".")).unwrap();
-        ShadingVariant::of(&scene.materials, &scene.lights).constants()
+        ShadingVariant::of(&scene).constants()
     }
 
     /// Thresholds are bands - 1, four to a vec4; models and light kinds
@@ -958,28 +969,41 @@ mod tests {
         assert_eq!(
             values(shading_of(
                 r#""a": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 5))"#,
-                sun
+                sun,
+                &["a"]
             )),
             [1.0, 2.0, 1.0]
         );
         assert_eq!(
             values(shading_of(
                 r#""a": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 6)), "b": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong)"#,
-                &format!("{sun}, {bulb}")
+                &format!("{sun}, {bulb}"),
+                &["a", "b"]
             )),
             [2.0, 3.0, 3.0]
+        );
+        // A material no instance shows leaves its code out.
+        assert_eq!(
+            values(shading_of(
+                r#""a": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 16)), "b": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong)"#,
+                sun,
+                &["b"]
+            )),
+            [1.0, 1.0, 1.0]
         );
         assert_eq!(
             values(shading_of(
                 r#""a": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 16))"#,
-                bulb
+                bulb,
+                &["a"]
             )),
             [4.0, 2.0, 2.0]
         );
         assert_eq!(
             values(shading_of(
                 r#""a": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong)"#,
-                ""
+                "",
+                &["a"]
             )),
             [1.0, 1.0, 3.0]
         );

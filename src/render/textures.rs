@@ -47,17 +47,16 @@ pub fn scene_images(scene: &Scene) -> Vec<Arc<Texture>> {
     out
 }
 
-/// Whether the scene needs texture code: a material with an image or a
-/// pattern, or a mesh with its own maps.
+/// Whether the scene needs texture code: a material some surface shows
+/// with an image or a pattern, or a mesh an instance shows with its own
+/// maps.
 pub fn scene_uses_textures(scene: &Scene) -> bool {
     scene
-        .materials
-        .iter()
+        .used_materials()
         .any(|m| m.base_color_texture.is_some() || m.base_color_pattern.is_some())
         || scene
-            .shapes
-            .iter()
-            .any(|s| matches!(s, Shape::Mesh(m) if !m.textures.is_empty()))
+            .used_shapes()
+            .any(|(_, s)| matches!(s, Shape::Mesh(m) if !m.textures.is_empty()))
 }
 
 impl SceneTextures {

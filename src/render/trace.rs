@@ -14,7 +14,7 @@ use std::collections::HashMap;
 
 use wgpu::util::DeviceExt;
 
-use crate::accel::{shadow_cull, PrivateSizes};
+use crate::accel::{shadow_cull, shape_params, PrivateSizes};
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,
 };
@@ -31,7 +31,7 @@ use crate::render::scene_buffers::{
 };
 use crate::render::targets::Targets;
 use crate::render::RenderSettings;
-use crate::scene::{Light, Material, Scene};
+use crate::scene::{Light, Material, Scene, Shape};
 
 const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
 
@@ -158,20 +158,22 @@ pub struct Variant {
 
 impl Variant {
     pub fn of(scene: &Scene, buffers: &SceneBuffers, settings: &RenderSettings) -> Variant {
+        // Only what some instance shows counts: a definition no instance
+        // uses could change no pixel.
         let reflective: Vec<&Material> = scene
-            .materials
-            .iter()
+            .used_materials()
             .filter(|m| m.reflectivity > 0.0)
             .collect();
+        let kinds = used_kinds(scene);
         let reflections = settings.max_bounces > 0 && !reflective.is_empty();
         let casts: Vec<bool> = scene.lights.iter().map(Light::casts_shadows).collect();
         let mask_lights = u32::BITS as usize;
-        let (csg_fast_leaves, csg_interpreter) = csg_programs(buffers);
+        let (csg_fast_leaves, csg_interpreter) = csg_programs(scene, buffers);
         Variant {
-            csg: !buffers.accel.csg_ops.is_empty(),
+            csg: kinds & 1 << SHAPE_CSG != 0,
             csg_fast_leaves,
             csg_interpreter,
-            meshes: !buffers.accel.triangles.is_empty(),
+            meshes: kinds & 1 << SHAPE_MESH != 0,
             shadow_lights: casts
                 .iter()
                 .take(mask_lights)
@@ -184,8 +186,8 @@ impl Variant {
             reflections,
             glossy: reflections && reflective.iter().any(|m| m.roughness > 0.0),
             textures: buffers.uses_textures,
-            analytic_kinds: analytic_kinds(buffers),
-            shading: ShadingVariant::of(&scene.materials, &scene.lights),
+            analytic_kinds: kinds & ((1 << SHAPE_MESH) - 1),
+            shading: ShadingVariant::of(scene),
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
             selected: buffers.selected,
@@ -242,23 +244,27 @@ fn shadow_lists(scene: &Scene, buffers: &SceneBuffers) -> bool {
 /// Of the scene's CSG programs: the most leaves of those evaluated by their
 /// truth table (`GpuShape::csg_fast`), and whether some other runs on
 /// interval lists.
-fn csg_programs(buffers: &SceneBuffers) -> (u32, bool) {
-    let csg = buffers.accel.shapes.iter().filter(|s| s.kind == SHAPE_CSG);
-    csg.fold((0, false), |(most, lists), s| {
-        let leaves = s.csg_fast >> CSG_FAST_COUNT_SHIFT;
-        (most.max(leaves), lists || s.csg_fast == 0)
-    })
+fn csg_programs(scene: &Scene, buffers: &SceneBuffers) -> (u32, bool) {
+    let csg = scene.used_shapes().map(|(id, _)| &buffers.accel.shapes[id]);
+    csg.filter(|s| s.kind == SHAPE_CSG)
+        .fold((0, false), |(most, lists), s| {
+            let leaves = s.csg_fast >> CSG_FAST_COUNT_SHIFT;
+            (most.max(leaves), lists || s.csg_fast == 0)
+        })
 }
 
-/// The analytic shape kinds (bit 1 << kind) of the scene's shapes and CSG
-/// leaves; meshes and CSG trees have their own switches.
-fn analytic_kinds(buffers: &SceneBuffers) -> u32 {
-    let kinds = buffers.accel.shapes.iter().map(|s| s.kind);
-    let leaves = buffers.accel.csg_leaves.iter().map(|l| l.kind);
-    kinds
-        .chain(leaves)
-        .filter(|&k| k < SHAPE_MESH)
-        .fold(0, |bits, k| bits | 1 << k)
+/// The shape kinds (bit 1 << kind) of the shapes instances show and of
+/// their CSG leaves: analytic kinds, `SHAPE_MESH` (a mesh, or a closed
+/// mesh in a tree) and `SHAPE_CSG`.
+fn used_kinds(scene: &Scene) -> u32 {
+    let kind = |shape: &Shape| 1 << shape_params(shape).0;
+    scene.used_shapes().fold(0, |bits, (_, shape)| {
+        let leaves = match shape {
+            Shape::Csg(csg) => csg.root.leaves().iter().fold(0, |b, l| b | kind(&l.shape)),
+            _ => 0,
+        };
+        bits | kind(shape) | leaves
+    })
 }
 
 /// The trace workgroups (8 x 8 pixel tiles) over a `width` x `height` image.

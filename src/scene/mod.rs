@@ -417,11 +417,78 @@ impl Scene {
     pub fn shape_id(&self, name: &str) -> Option<usize> {
         self.shape_names.iter().position(|n| n == name)
     }
+
+    /// The shapes some instance shows, each once, in the order of
+    /// [`Scene::shapes`]: what a pipeline must be able to draw. A shape
+    /// the scene defines but no instance uses is left out.
+    /// Yields each with its index.
+    pub fn used_shapes(&self) -> impl Iterator<Item = (usize, &Shape)> {
+        let mut used = vec![false; self.shapes.len()];
+        for instance in &self.instances {
+            used[instance.shape] = true;
+        }
+        let shapes = self.shapes.iter().enumerate().zip(used);
+        shapes.filter_map(|(s, u)| u.then_some(s))
+    }
+
+    /// The materials some visible surface can show, each once, in the
+    /// order of [`Scene::materials`]: the instances' own and those the
+    /// leaves of their CSG shapes name. A material no surface shows is
+    /// left out.
+    pub fn used_materials(&self) -> impl Iterator<Item = &Material> {
+        let mut used = vec![false; self.materials.len()];
+        for instance in &self.instances {
+            used[instance.material] = true;
+            if let Shape::Csg(csg) = &self.shapes[instance.shape] {
+                for leaf in csg.root.leaves() {
+                    if let Some(m) = leaf.material {
+                        used[m] = true;
+                    }
+                }
+            }
+        }
+        self.materials
+            .iter()
+            .zip(used)
+            .filter_map(|(m, u)| u.then_some(m))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Only what an instance shows counts as used: the instances' shapes
+    /// and materials and the materials their CSG leaves name; a CSG shape
+    /// no instance shows does not bring in its leaves' materials.
+    #[test]
+    fn used_shapes_and_materials_are_what_instances_show() {
+        let ron = r#"(version: 1,
+            camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 8, height: 8),
+            lights: [],
+            materials: { "plain": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong),
+                         "bore": (base_color: (0.0, 0.0, 1.0), model: Toon(bands: 3)),
+                         "cut": (base_color: (1.0, 0.0, 0.0), model: BlinnPhong),
+                         "mirror": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong, reflectivity: 0.9) },
+            shapes: { "ball": Sphere(radius: 1.0),
+                      "crate": Box(half_extents: (1.0, 1.0, 1.0)),
+                      "drilled": Difference(Sphere(radius: 1.0), Cylinder(radius: 0.3, height: 3.0, material: "bore")),
+                      "notched": Difference(Box(half_extents: (1.0, 1.0, 1.0)), Sphere(radius: 0.5, material: "cut")) },
+            instances: [(shape: "drilled", material: "plain"), (shape: "ball", material: "plain"),
+                        (shape: "ball", material: "plain", transform: (translate: (3.0, 0.0, 0.0)))],
+        )"#;
+        let scene = Scene::from_ron_str(ron, "test", Path::new(".")).unwrap();
+        let shapes: Vec<usize> = scene.used_shapes().map(|(id, _)| id).collect();
+        let expect = ["ball", "drilled"].map(|n| scene.shape_id(n).unwrap());
+        let mut expect = expect.to_vec();
+        expect.sort();
+        assert_eq!(shapes, expect, "each shown shape once, in order");
+        let materials: Vec<&Material> = scene.used_materials().collect();
+        let named = |n: &str| &scene.materials[scene.material_id(n).unwrap()];
+        let mut expect = vec![named("plain"), named("bore")];
+        expect.sort_by_key(|m| scene.materials.iter().position(|x| std::ptr::eq(x, *m)));
+        assert_eq!(materials, expect);
+    }
 
     /// The built-in scene still finds its cow when the assets directory is
     /// not there (binary run from elsewhere).
