@@ -13,11 +13,12 @@ use super::controller::{self, NavMode};
 use super::event_loop::{window_title, AppEvent};
 use super::layout;
 use super::model::Model;
-use super::overlay::{self, Overlay, OverlayDraw, OverlayFrame};
+use super::overlay::{self, Overlay, OverlayFrame};
 use super::panel::{self, PanelInfo};
+use super::panel_cache::PxRect;
 use super::reload::HotReload;
 use super::screenshot;
-use super::surface::{read_rgba8, Acquired, WindowSurface};
+use super::surface::{self, read_rgba8, Acquired, WindowSurface};
 use super::timing::{FrameStats, FrameTimer, PassTimes, Startup};
 use super::view_ui::{views_ui, ViewArea};
 use super::views::ViewSlots;
@@ -120,7 +121,7 @@ impl LiveApp {
             WindowSurface::open(event_loop, &title, o.window_size, &o.adapter)?;
         let mut overlay = Overlay::new(&gpu, &surface.window, surface.config.format);
         let timer = FrameTimer::new(&gpu);
-        let egui_views = (!surface.direct).then_some(&mut overlay.renderer);
+        let egui_views = (!surface.direct).then_some(&mut overlay.painter.renderer);
         let views = ViewSlots::new(&gpu, surface.view_format, egui_views, timer.is_some());
         let mut model = Model::new(
             o.scene.clone(),
@@ -369,7 +370,7 @@ impl LiveApp {
         }
         if let Err(e) = self
             .views
-            .sync(&self.gpu, &self.model, &mut self.overlay.renderer)
+            .sync(&self.gpu, &self.model, &mut self.overlay.painter.renderer)
         {
             self.model.error = Some(e.to_string());
         }
@@ -417,9 +418,6 @@ impl LiveApp {
         self.resolve_views(&mut encoder);
         let ppp = ui.pixels_per_point;
         let size = [self.surface.config.width, self.surface.config.height];
-        let prepare_start = Instant::now();
-        let mut paint = self.overlay.prepare(&self.gpu, &mut encoder, ui, size);
-        let prepare_ms = prepare_start.elapsed().as_secs_f64() * 1e3;
         let images = self.views.images();
         let placements = if self.surface.direct {
             let m = &self.model;
@@ -427,26 +425,32 @@ impl LiveApp {
         } else {
             Vec::new()
         };
-        let overlay = OverlayDraw {
-            renderer: &self.overlay.renderer,
-            paint_jobs: &paint.paint_jobs,
-            screen: &paint.screen,
-            background: paint.background,
-        };
+        let views: Vec<PxRect> = (placements.iter())
+            .map(|p| PxRect::at(p.dst, p.size))
+            .collect();
+        let views = self.surface.direct.then_some(&views[..]);
+        let prepare_start = Instant::now();
+        let mut paint = self
+            .overlay
+            .prepare(&self.gpu, &mut encoder, ui, size, views);
+        let prepare_ms = prepare_start.elapsed().as_secs_f64() * 1e3;
         if let Some(t) = &mut self.timer {
+            t.panel_begin(&mut encoder);
+        }
+        self.overlay.painter.draw_panel(&mut encoder, &paint);
+        if let Some(t) = &mut self.timer {
+            t.panel_end(&mut encoder);
             t.copy_begin(&mut encoder);
         }
-        let load = (self.surface).compose_views(
-            &mut encoder,
-            &frame.texture,
-            &placements,
-            overlay.background,
-        );
+        let overlay = paint.draw(&self.overlay.painter);
+        let direct = self.surface.direct;
+        let load =
+            surface::compose_views(direct, &mut encoder, &frame.texture, &placements, &overlay);
         if let Some(t) = &mut self.timer {
             t.copy_end(&mut encoder);
             t.egui_begin(&mut encoder);
         }
-        (self.surface).compose_overlay(&mut encoder, &frame.texture, load, &overlay);
+        surface::compose_overlay(&mut encoder, &frame.texture, load, &overlay);
         if let Some(t) = &mut self.timer {
             t.egui_end(&mut encoder);
         }

@@ -22,6 +22,7 @@ mod live;
 pub mod model;
 mod overlay;
 pub mod panel;
+mod panel_cache;
 mod reload;
 pub mod screenshot;
 mod surface;

@@ -5,26 +5,51 @@ use std::time::Duration;
 
 use winit::window::Window;
 
+use super::panel_cache::{self, PanelCache, PanelDraw, PxRect};
 use crate::gpu::Gpu;
 
 /// egui, as the window uses it.
 pub(super) struct Overlay {
     pub ctx: egui::Context,
     pub state: egui_winit::State,
+    pub painter: Painter,
+}
+
+/// egui's drawing, apart from its input: the renderer, the last
+/// tessellation, what the renderer's buffers hold, and the panel cache.
+pub(super) struct Painter {
     pub renderer: egui_wgpu::Renderer,
-    /// The paint jobs last tessellated and uploaded into `renderer`'s
-    /// buffers, and the surface size they were uploaded for.
-    last_paint: Option<(PaintJobs, [u32; 2])>,
+    format: wgpu::TextureFormat,
+    /// The paint jobs last tessellated.
+    last: Option<Tessellated>,
+    /// What `renderer`'s buffers hold: the tessellation's number, which
+    /// of its jobs the cache took (`None`: none) and the jobs left.
+    uploaded: Option<(u64, Option<Vec<bool>>, PaintJobs)>,
+    pub panel: PanelCache,
+}
+
+/// One tessellation of the UI's shapes, for a surface of `size` pixels;
+/// `generation` counts them.
+#[derive(Clone)]
+struct Tessellated {
+    jobs: PaintJobs,
+    size: [u32; 2],
+    generation: u64,
 }
 
 /// egui's part of a frame, ready to draw.
 pub(super) struct OverlayDraw<'a> {
     pub renderer: &'a egui_wgpu::Renderer,
+    /// The jobs drawn over the window (those the panel cache does not
+    /// give).
     pub paint_jobs: &'a [egui::ClippedPrimitive],
     pub screen: &'a egui_wgpu::ScreenDescriptor,
     /// What the window is cleared to: the theme's panel colour (the panel
     /// itself draws no fill, see [`background`]).
     pub background: wgpu::Color,
+    /// The panel cache's texture and the window's pixels it gives (all
+    /// those outside the views), where the panel is cached.
+    pub panel: Option<(&'a wgpu::Texture, &'a [PxRect])>,
 }
 
 /// One frame of the UI, after it ran: what to draw and when to draw again.
@@ -69,10 +94,11 @@ impl OverlayFrame {
 
 /// Tessellated paint jobs, shared between the frame that drew them and
 /// the frames that draw them again.
-type PaintJobs = std::sync::Arc<[egui::ClippedPrimitive]>;
+pub(super) type PaintJobs = std::sync::Arc<[egui::ClippedPrimitive]>;
 
 /// An [`OverlayFrame`] tessellated and uploaded, ready to draw.
 pub(super) struct OverlayPaint {
+    /// The jobs drawn over the window (all, where the panel is not cached).
     pub paint_jobs: PaintJobs,
     pub screen: egui_wgpu::ScreenDescriptor,
     /// Command buffers egui's callbacks recorded, submitted before the frame's.
@@ -80,28 +106,20 @@ pub(super) struct OverlayPaint {
     to_free: Vec<egui::TextureId>,
     /// The window's clear colour ([`background`]).
     pub background: wgpu::Color,
+    /// The panel cache's part in this frame, where the panel is cached.
+    pub panel: Option<PanelDraw>,
 }
 
-/// The paint jobs of `shapes` on `screen`, tessellated and uploaded into
-/// `renderer`'s buffers, and the command buffers egui's callbacks recorded;
-/// `last` is the last upload. Drawn `again` on a screen of the same size,
-/// the last upload's jobs, which the buffers still hold.
-fn paint(
-    ctx: &egui::Context,
-    renderer: &mut egui_wgpu::Renderer,
-    last: &mut Option<(PaintJobs, [u32; 2])>,
-    (gpu, encoder): (&Gpu, &mut wgpu::CommandEncoder),
-    shapes: Vec<egui::epaint::ClippedShape>,
-    again: bool,
-    screen: &egui_wgpu::ScreenDescriptor,
-) -> (PaintJobs, Vec<wgpu::CommandBuffer>) {
-    match last {
-        Some((jobs, size)) if again && *size == screen.size_in_pixels => (jobs.clone(), Vec::new()),
-        _ => {
-            let jobs: PaintJobs = ctx.tessellate(shapes, screen.pixels_per_point).into();
-            let extra = renderer.update_buffers(&gpu.device, &gpu.queue, encoder, &jobs, screen);
-            *last = Some((jobs.clone(), screen.size_in_pixels));
-            (jobs, extra)
+impl OverlayPaint {
+    /// The frame's drawing, with `painter`'s renderer and cache.
+    pub fn draw<'a>(&'a self, painter: &'a Painter) -> OverlayDraw<'a> {
+        let texture = painter.panel.texture();
+        OverlayDraw {
+            renderer: &painter.renderer,
+            paint_jobs: &self.paint_jobs,
+            screen: &self.screen,
+            background: self.background,
+            panel: (self.panel.as_ref()).and_then(|p| Some((texture?, &p.copies[..]))),
         }
     }
 }
@@ -133,21 +151,10 @@ impl Overlay {
             window.theme(),
             Some(gpu.device.limits().max_texture_dimension_2d as usize),
         );
-        let renderer = egui_wgpu::Renderer::new(
-            &gpu.device,
-            format,
-            // Dithering costs 40% of egui's GPU time on a CPU driver, for
-            // no visible gain on an 8-bit panel.
-            egui_wgpu::RendererOptions {
-                dithering: false,
-                ..Default::default()
-            },
-        );
         Overlay {
             ctx,
             state,
-            renderer,
-            last_paint: None,
+            painter: Painter::new(&gpu.device, format),
         }
     }
 
@@ -164,8 +171,7 @@ impl Overlay {
         let mut full = self.ctx.run_ui(raw, build);
         for (id, deltas) in full.textures_delta.set.drain() {
             for delta in &deltas {
-                self.renderer
-                    .update_texture(&gpu.device, &gpu.queue, id, delta);
+                self.painter.update_texture(gpu, id, delta);
             }
         }
         let to_free = full.textures_delta.free.drain().collect();
@@ -185,45 +191,171 @@ impl Overlay {
         }
     }
 
-    /// Tessellates `frame` for a surface of `size_px` and records the
-    /// upload of its buffers into `encoder`; a frame drawn [`again`]
-    /// (OverlayFrame::again) on a surface of the same size reuses the last
-    /// upload, which the renderer's buffers still hold.
+    /// Tessellates `frame` for a surface of `size_px` (or takes the last
+    /// tessellation, for a frame drawn [`again`](OverlayFrame::again) on
+    /// a surface of the same size) and records the uploads it needs into
+    /// `encoder`. `views`: the window's pixels its views' images fill,
+    /// where they are copied in (the panel cache's case, see
+    /// [`super::panel_cache`]); `None` where egui draws them.
     pub fn prepare(
         &mut self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
         frame: OverlayFrame,
         size_px: [u32; 2],
+        views: Option<&[PxRect]>,
+    ) -> OverlayPaint {
+        let background = background(self.ctx.global_style().visuals.panel_fill);
+        (self.painter).prepare(
+            &self.ctx,
+            (gpu, encoder),
+            frame,
+            size_px,
+            (views, background),
+        )
+    }
+
+    /// Frees the textures egui let go of in `paint`'s frame (once presented).
+    pub fn free_textures(&mut self, paint: &OverlayPaint) {
+        for id in &paint.to_free {
+            self.painter.renderer.free_texture(id);
+            self.painter.panel.renderer.free_texture(id);
+        }
+    }
+}
+
+/// A renderer for egui's jobs into targets of `format`.
+pub(super) fn egui_renderer(
+    device: &wgpu::Device,
+    format: wgpu::TextureFormat,
+) -> egui_wgpu::Renderer {
+    egui_wgpu::Renderer::new(
+        device,
+        format,
+        // Dithering costs 40% of egui's GPU time on a CPU driver, for
+        // no visible gain on an 8-bit panel.
+        egui_wgpu::RendererOptions {
+            dithering: false,
+            ..Default::default()
+        },
+    )
+}
+
+impl Painter {
+    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> Painter {
+        Painter {
+            renderer: egui_renderer(device, format),
+            format,
+            last: None,
+            uploaded: None,
+            panel: PanelCache::new(device, format),
+        }
+    }
+
+    /// Applies one of egui's texture changes (to both renderers).
+    pub fn update_texture(
+        &mut self,
+        gpu: &Gpu,
+        id: egui::TextureId,
+        delta: &egui::epaint::ImageDelta,
+    ) {
+        for r in [&mut self.renderer, &mut self.panel.renderer] {
+            r.update_texture(&gpu.device, &gpu.queue, id, delta);
+        }
+    }
+
+    /// [`Overlay::prepare`], given egui's context and the window's
+    /// background colour.
+    pub fn prepare(
+        &mut self,
+        ctx: &egui::Context,
+        (gpu, encoder): (&Gpu, &mut wgpu::CommandEncoder),
+        frame: OverlayFrame,
+        size_px: [u32; 2],
+        (views, background): (Option<&[PxRect]>, wgpu::Color),
     ) -> OverlayPaint {
         let ppp = frame.pixels_per_point;
         let screen = egui_wgpu::ScreenDescriptor {
             size_in_pixels: size_px,
             pixels_per_point: ppp,
         };
-        let (paint_jobs, extra) = paint(
-            &self.ctx,
-            &mut self.renderer,
-            &mut self.last_paint,
-            (gpu, encoder),
-            frame.shapes,
-            frame.again,
-            &screen,
-        );
+        let tess = match &self.last {
+            Some(last) if frame.again && last.size == size_px => last.clone(),
+            _ => Tessellated {
+                jobs: ctx.tessellate(frame.shapes, ppp).into(),
+                size: size_px,
+                generation: self.last.as_ref().map_or(0, |l| l.generation + 1),
+            },
+        };
+        self.last = Some(tess.clone());
+        let cached = views.and_then(|v| panel_cache::split(&tess.jobs, ppp, size_px, v));
+        let mut extra = Vec::new();
+        let paint_jobs = match &self.uploaded {
+            Some((g, c, jobs)) if *g == tess.generation && *c == cached => jobs.clone(),
+            _ => {
+                let jobs: PaintJobs = match &cached {
+                    Some(mask) => panel_cache::pick(&tess.jobs, mask, false),
+                    None => tess.jobs.clone(),
+                };
+                extra = (self.renderer).update_buffers(
+                    &gpu.device,
+                    &gpu.queue,
+                    encoder,
+                    &jobs,
+                    &screen,
+                );
+                self.uploaded = Some((tess.generation, cached.clone(), jobs.clone()));
+                jobs
+            }
+        };
+        let panel = cached.map(|mask| {
+            let job_set = (tess.generation, &tess.jobs[..], &mask[..]);
+            PanelDraw {
+                redraw: self
+                    .panel
+                    .prepare(gpu, encoder, job_set, &screen, self.format),
+                copies: panel_cache::outside(views.unwrap_or_default(), size_px),
+            }
+        });
         OverlayPaint {
             paint_jobs,
             screen,
             extra,
             to_free: frame.to_free,
-            background: background(self.ctx.global_style().visuals.panel_fill),
+            background,
+            panel,
         }
     }
 
-    /// Frees the textures egui let go of in `paint`'s frame (once presented).
-    pub fn free_textures(&mut self, paint: &OverlayPaint) {
-        for id in &paint.to_free {
-            self.renderer.free_texture(id);
-        }
+    /// Draws into the panel cache the jobs `paint` says it lacks, over the
+    /// window's background (nothing where it holds them already).
+    pub fn draw_panel(&self, encoder: &mut wgpu::CommandEncoder, paint: &OverlayPaint) {
+        let (Some(texture), Some(jobs)) = (
+            self.panel.texture(),
+            (paint.panel.as_ref()).and_then(|p| p.redraw.as_ref()),
+        ) else {
+            return;
+        };
+        let view = texture.create_view(&Default::default());
+        let mut pass = encoder
+            .begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("egui panel cache"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(paint.background),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            })
+            .forget_lifetime();
+        self.panel.renderer.render(&mut pass, jobs, &paint.screen);
     }
 }
 
@@ -239,8 +371,7 @@ mod tests {
     fn a_frame_drawn_again_shows_the_same_pixels() {
         let gpu = Gpu::new_headless(&AdapterChoice::for_tests()).unwrap();
         let format = wgpu::TextureFormat::Rgba8Unorm;
-        let mut renderer =
-            egui_wgpu::Renderer::new(&gpu.device, format, egui_wgpu::RendererOptions::default());
+        let mut painter = Painter::new(&gpu.device, format);
         let ctx = egui::Context::default();
         let size = [160u32, 48];
         let raw = egui::RawInput {
@@ -255,14 +386,9 @@ mod tests {
         });
         for (id, deltas) in full.textures_delta.set.drain() {
             for delta in &deltas {
-                renderer.update_texture(&gpu.device, &gpu.queue, id, delta);
+                painter.update_texture(&gpu, id, delta);
             }
         }
-        let screen = egui_wgpu::ScreenDescriptor {
-            size_in_pixels: size,
-            pixels_per_point: 1.0,
-        };
-        let mut last = None;
         let mut draw = |shapes: Vec<egui::epaint::ClippedShape>, again: bool| {
             let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("overlay test"),
@@ -279,14 +405,19 @@ mod tests {
                 view_formats: &[],
             });
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            let (jobs, _) = paint(
-                &ctx,
-                &mut renderer,
-                &mut last,
-                (&gpu, &mut encoder),
+            let frame = OverlayFrame {
                 shapes,
+                pixels_per_point: 1.0,
+                to_free: Vec::new(),
+                repaint_delay: Duration::MAX,
                 again,
-                &screen,
+            };
+            let paint = painter.prepare(
+                &ctx,
+                (&gpu, &mut encoder),
+                frame,
+                size,
+                (None, wgpu::Color::BLACK),
             );
             let view = target.create_view(&Default::default());
             let mut pass = encoder
@@ -307,7 +438,9 @@ mod tests {
                     multiview_mask: None,
                 })
                 .forget_lifetime();
-            renderer.render(&mut pass, &jobs, &screen);
+            painter
+                .renderer
+                .render(&mut pass, &paint.paint_jobs, &paint.screen);
             drop(pass);
             gpu.queue.submit([encoder.finish()]);
             super::super::surface::read_rgba8(&gpu, &target, format).unwrap()
@@ -317,5 +450,154 @@ mod tests {
         let lit = first.chunks_exact(4).filter(|p| p[0] > 100).count();
         assert!(lit > 20, "the label drew {lit} light pixels");
         assert!(first == again, "the frame drawn again differs");
+    }
+    /// A window composed with the panel cache is the same bytes as one
+    /// composed without it (cleared, the view copied in, every job drawn
+    /// over it), on the frame that draws the cache and on the next, which
+    /// only copies it; and the cache did take the panel's text and left
+    /// the view's label and the panel's edge line (drawn over the whole
+    /// window after the panel) to the overlay pass.
+    #[test]
+    fn the_panel_cache_gives_the_same_window() {
+        use super::super::surface::{self, Placement};
+        let gpu = Gpu::new_headless(&AdapterChoice::for_tests()).unwrap();
+        let format = wgpu::TextureFormat::Rgba8Unorm;
+        let size = [320u32, 120];
+        let texture = |label, usage| {
+            gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        // The view's image: a gradient, so that a misplaced copy shows.
+        let image = texture(
+            "view",
+            wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::COPY_DST,
+        );
+        let texels: Vec<u8> = (0..size[0] * size[1])
+            .flat_map(|i| [(i % 251) as u8, (i / 320) as u8, 200, 255])
+            .collect();
+        gpu.queue.write_texture(
+            image.as_image_copy(),
+            &texels,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(size[0] * 4),
+                rows_per_image: None,
+            },
+            wgpu::Extent3d {
+                width: size[0],
+                height: size[1],
+                depth_or_array_layers: 1,
+            },
+        );
+        let ctx = egui::Context::default();
+        let raw = egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(
+                egui::Pos2::ZERO,
+                egui::vec2(size[0] as f32, size[1] as f32),
+            )),
+            ..Default::default()
+        };
+        let mut full = ctx.run_ui(raw, |ui| {
+            egui::Panel::left("panel")
+                .frame(panel_frame(ui.style()))
+                .default_size(120.0)
+                .show(ui, |ui| {
+                    for i in 0..5 {
+                        ui.label(format!("celray {i}"));
+                    }
+                });
+            let rect = ui.available_rect_before_wrap();
+            let painter = ui.painter_at(rect);
+            let text = egui::Color32::WHITE;
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "view",
+                Default::default(),
+                text,
+            );
+        });
+        let mut painters = [
+            Painter::new(&gpu.device, format),
+            Painter::new(&gpu.device, format),
+        ];
+        for (id, deltas) in full.textures_delta.set.drain() {
+            for delta in &deltas {
+                painters
+                    .iter_mut()
+                    .for_each(|p| p.update_texture(&gpu, id, delta));
+            }
+        }
+        let background = background(ctx.global_style().visuals.panel_fill);
+        let shapes = full.shapes;
+        let frame = |shapes: Vec<egui::epaint::ClippedShape>, again| OverlayFrame {
+            shapes,
+            pixels_per_point: 1.0,
+            to_free: Vec::new(),
+            repaint_delay: Duration::MAX,
+            again,
+        };
+        // The view fills the window right of the panel (egui's panel is
+        // 120 points wide here, its edge line at x = 120).
+        let view_at = (121, 0);
+        let view_size = (size[0] - view_at.0, size[1]);
+        let views = [PxRect::at(view_at, view_size)];
+        let compose = |painter: &mut Painter, frame: OverlayFrame, cached: bool| {
+            let target = texture(
+                "window",
+                wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::COPY_SRC
+                    | wgpu::TextureUsages::COPY_DST,
+            );
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let views = cached.then_some(&views[..]);
+            let paint =
+                painter.prepare(&ctx, (&gpu, &mut encoder), frame, size, (views, background));
+            painter.draw_panel(&mut encoder, &paint);
+            let placements = [Placement {
+                texture: &image,
+                src: (0, 0),
+                dst: view_at,
+                size: view_size,
+            }];
+            let overlay = paint.draw(painter);
+            let load = surface::compose_views(true, &mut encoder, &target, &placements, &overlay);
+            surface::compose_overlay(&mut encoder, &target, load, &overlay);
+            gpu.queue.submit([encoder.finish()]);
+            let redrawn = (paint.panel.as_ref()).map(|p| p.redraw.is_some());
+            let window = super::super::surface::read_rgba8(&gpu, &target, format).unwrap();
+            (window, redrawn, paint.paint_jobs.len())
+        };
+        let [plain, cached] = &mut painters;
+        let (want, _, all_jobs) = compose(plain, frame(shapes.clone(), false), false);
+        let (first, redrawn, left) = compose(cached, frame(shapes, false), true);
+        let (again, redrawn_again, _) = compose(cached, frame(Vec::new(), true), true);
+        assert_eq!(redrawn, Some(true), "the first frame draws the cache");
+        assert_eq!(redrawn_again, Some(false), "the next only copies it");
+        assert!(
+            0 < left && left < all_jobs,
+            "{left} of {all_jobs} jobs drawn over the window"
+        );
+        let panel_lit = (want.chunks_exact(4).enumerate())
+            .filter(|(i, p)| (*i as u32 % size[0]) < 120 && p[0] > 100)
+            .count();
+        assert!(
+            panel_lit > 50,
+            "the panel's text drew {panel_lit} light pixels"
+        );
+        assert!(first == want, "the window drawn with the cache differs");
+        assert!(again == want, "the window copied from the cache differs");
     }
 }

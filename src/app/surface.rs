@@ -262,67 +262,81 @@ impl WindowSurface {
         placements: &[Placement],
         overlay: &OverlayDraw,
     ) {
-        let load = self.compose_views(encoder, target, placements, overlay.background);
-        self.compose_overlay(encoder, target, load, overlay);
+        let load = compose_views(self.direct, encoder, target, placements, overlay);
+        compose_overlay(encoder, target, load, overlay);
     }
+}
 
-    /// The first half of [`WindowSurface::compose`]: where the views are
-    /// copied in, clears `target` to `background` and copies them; returns
-    /// how the overlay pass is to load `target`.
-    pub fn compose_views(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        target: &wgpu::Texture,
-        placements: &[Placement],
-        background: wgpu::Color,
-    ) -> wgpu::LoadOp<wgpu::Color> {
+/// The first half of [`WindowSurface::compose`]: where the views are
+/// copied in (`direct`), copies them and the panel cache's pixels
+/// outside them, or where the panel is not cached, clears `target` to the
+/// background first; returns how the overlay pass is to load `target`.
+pub(super) fn compose_views(
+    direct: bool,
+    encoder: &mut wgpu::CommandEncoder,
+    target: &wgpu::Texture,
+    placements: &[Placement],
+    overlay: &OverlayDraw,
+) -> wgpu::LoadOp<wgpu::Color> {
+    if !direct {
+        return wgpu::LoadOp::Clear(overlay.background);
+    }
+    if overlay.panel.is_none() {
         let view = target.create_view(&Default::default());
-        if self.direct {
-            // Clear, copy the views in, then draw egui over them.
-            drop(encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("clear window"),
-                color_attachments: &[Some(color_attachment(
-                    &view,
-                    wgpu::LoadOp::Clear(background),
-                ))],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            }));
-            for p in placements {
-                copy_placement(encoder, p, target);
-            }
-            wgpu::LoadOp::Load
-        } else {
-            wgpu::LoadOp::Clear(background)
+        drop(encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("clear window"),
+            color_attachments: &[Some(color_attachment(
+                &view,
+                wgpu::LoadOp::Clear(overlay.background),
+            ))],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        }));
+    }
+    for p in placements {
+        copy_placement(encoder, p, target);
+    }
+    // Every pixel outside the views, from the cache (which holds the
+    // background where no panel job drew).
+    if let Some((cache, copies)) = overlay.panel {
+        for r in copies {
+            let p = Placement {
+                texture: cache,
+                src: (r.x0, r.y0),
+                dst: (r.x0, r.y0),
+                size: (r.x1 - r.x0, r.y1 - r.y0),
+            };
+            copy_placement(encoder, &p, target);
         }
     }
+    wgpu::LoadOp::Load
+}
 
-    /// The second half of [`WindowSurface::compose`]: egui's pass over
-    /// `target`, loaded as [`WindowSurface::compose_views`] said.
-    pub fn compose_overlay(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        target: &wgpu::Texture,
-        load: wgpu::LoadOp<wgpu::Color>,
-        overlay: &OverlayDraw,
-    ) {
-        let view = target.create_view(&Default::default());
-        let mut pass = encoder
-            .begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("egui pass"),
-                color_attachments: &[Some(color_attachment(&view, load))],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            })
-            .forget_lifetime();
-        overlay
-            .renderer
-            .render(&mut pass, overlay.paint_jobs, overlay.screen);
-    }
+/// The second half of [`WindowSurface::compose`]: egui's pass over
+/// `target` (the jobs the panel cache does not give), loaded as
+/// [`compose_views`] said.
+pub(super) fn compose_overlay(
+    encoder: &mut wgpu::CommandEncoder,
+    target: &wgpu::Texture,
+    load: wgpu::LoadOp<wgpu::Color>,
+    overlay: &OverlayDraw,
+) {
+    let view = target.create_view(&Default::default());
+    let mut pass = encoder
+        .begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("egui pass"),
+            color_attachments: &[Some(color_attachment(&view, load))],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+        .forget_lifetime();
+    overlay
+        .renderer
+        .render(&mut pass, overlay.paint_jobs, overlay.screen);
 }
 
 /// The surface's configuration: a non-sRGB format (egui wants one; the

@@ -20,7 +20,9 @@ pub struct PassTimes {
     /// The views' images copied into the window (where it can be copied
     /// into; where egui draws them, that is in `egui_ms`).
     pub copy_ms: f64,
-    /// egui drawing the panel and labels over the window.
+    /// egui drawing the panel and labels over the window: the jobs the
+    /// panel cache does not give, and on the frames that redraw it, the
+    /// cache's (`panel_cache`).
     pub egui_ms: f64,
     /// Views that rendered a timed sample in that frame.
     pub views_sampled: u32,
@@ -43,6 +45,8 @@ pub struct FrameTimer {
     resolve: Span,
     copy: Span,
     egui: Span,
+    /// egui's jobs drawn into the panel cache.
+    panel: Span,
     /// Each view slot's pass times read back since the last frame result
     /// (a later sample's replace an earlier one's: one sample per view).
     views: Vec<Option<PassTimes>>,
@@ -55,8 +59,8 @@ pub struct FrameTimer {
 impl FrameTimer {
     /// `None` when the device lacks timestamp queries inside encoders.
     pub fn new(gpu: &Gpu) -> Option<FrameTimer> {
-        let (timer, [resolve, copy, egui]) =
-            GpuTimer::new(gpu, "window frame", ["resolve", "copy", "egui"])?;
+        let (timer, [resolve, copy, egui, panel]) =
+            GpuTimer::new(gpu, "window frame", ["resolve", "copy", "egui", "panel"])?;
         if !timer.stamps_inside_encoders() {
             return None;
         }
@@ -65,6 +69,7 @@ impl FrameTimer {
             resolve,
             copy,
             egui,
+            panel,
             views: Vec::new(),
             timing_this_frame: false,
             // The first frame is timed.
@@ -101,6 +106,12 @@ impl FrameTimer {
     }
     pub fn egui_end(&mut self, encoder: &mut wgpu::CommandEncoder) {
         self.timer.stamp_end(encoder, self.egui);
+    }
+    pub fn panel_begin(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        self.timer.stamp_begin(encoder, self.panel);
+    }
+    pub fn panel_end(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        self.timer.stamp_end(encoder, self.panel);
     }
 
     /// Records the read-back; call at the end of the frame's last encoder.
@@ -156,7 +167,10 @@ impl FrameTimer {
             let times = PassTimes {
                 resolve_ms: self.timer.span_ms(self.resolve).unwrap_or(0.0),
                 copy_ms: self.timer.span_ms(self.copy).unwrap_or(0.0),
-                egui_ms: self.timer.span_ms(self.egui).unwrap_or(0.0),
+                egui_ms: [self.egui, self.panel]
+                    .map(|span| self.timer.span_ms(span).unwrap_or(0.0))
+                    .iter()
+                    .sum(),
                 ..self.take_view_times()
             };
             self.latest = Some(times);
