@@ -336,25 +336,8 @@ impl Painter {
         ) else {
             return;
         };
-        let view = texture.create_view(&Default::default());
-        let mut pass = encoder
-            .begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("egui panel cache"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(paint.background),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            })
-            .forget_lifetime();
+        let load = wgpu::LoadOp::Clear(paint.background);
+        let mut pass = super::surface::egui_pass(encoder, texture, load, "egui panel cache");
         self.panel.renderer.render(&mut pass, jobs, &paint.screen);
     }
 }
@@ -363,6 +346,17 @@ impl Painter {
 mod tests {
     use super::*;
     use crate::gpu::AdapterChoice;
+
+    /// egui's input for a screen of `size` pixels at 1 pixel per point.
+    fn input(size: [u32; 2]) -> egui::RawInput {
+        egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(
+                egui::Pos2::ZERO,
+                egui::vec2(size[0] as f32, size[1] as f32),
+            )),
+            ..Default::default()
+        }
+    }
 
     /// A frame drawn again from the last upload shows the same pixels as
     /// its first draw, text included, though it is neither tessellated nor
@@ -374,13 +368,7 @@ mod tests {
         let mut painter = Painter::new(&gpu.device, format);
         let ctx = egui::Context::default();
         let size = [160u32, 48];
-        let raw = egui::RawInput {
-            screen_rect: Some(egui::Rect::from_min_size(
-                egui::Pos2::ZERO,
-                egui::vec2(size[0] as f32, size[1] as f32),
-            )),
-            ..Default::default()
-        };
+        let raw = input(size);
         let mut full = ctx.run_ui(raw, |ui| {
             ui.label("celray 1234");
         });
@@ -390,20 +378,9 @@ mod tests {
             }
         }
         let mut draw = |shapes: Vec<egui::epaint::ClippedShape>, again: bool| {
-            let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("overlay test"),
-                size: wgpu::Extent3d {
-                    width: size[0],
-                    height: size[1],
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
+            let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+            let target =
+                super::super::surface::window_texture(&gpu, "overlay test", size, format, usage);
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             let frame = OverlayFrame {
                 shapes,
@@ -419,25 +396,9 @@ mod tests {
                 size,
                 (None, wgpu::Color::BLACK),
             );
-            let view = target.create_view(&Default::default());
-            let mut pass = encoder
-                .begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("overlay test"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                })
-                .forget_lifetime();
+            let load = wgpu::LoadOp::Clear(wgpu::Color::BLACK);
+            let mut pass =
+                super::super::surface::egui_pass(&mut encoder, &target, load, "overlay test");
             painter
                 .renderer
                 .render(&mut pass, &paint.paint_jobs, &paint.screen);
@@ -463,22 +424,7 @@ mod tests {
         let gpu = Gpu::new_headless(&AdapterChoice::for_tests()).unwrap();
         let format = wgpu::TextureFormat::Rgba8Unorm;
         let size = [320u32, 120];
-        let texture = |label, usage| {
-            gpu.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: size[0],
-                    height: size[1],
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
+        let texture = |label, usage| surface::window_texture(&gpu, label, size, format, usage);
         // The view's image: a gradient, so that a misplaced copy shows.
         let image = texture(
             "view",
@@ -502,13 +448,7 @@ mod tests {
             },
         );
         let ctx = egui::Context::default();
-        let raw = egui::RawInput {
-            screen_rect: Some(egui::Rect::from_min_size(
-                egui::Pos2::ZERO,
-                egui::vec2(size[0] as f32, size[1] as f32),
-            )),
-            ..Default::default()
-        };
+        let raw = input(size);
         let mut full = ctx.run_ui(raw, |ui| {
             egui::Panel::left("panel")
                 .frame(panel_frame(ui.style()))

@@ -23,6 +23,8 @@
 use egui::epaint::Primitive;
 use egui::ClippedPrimitive;
 
+use super::surface::window_texture;
+
 /// A rectangle of window pixels, `[x0, x1) x [y0, y1)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct PxRect {
@@ -199,7 +201,9 @@ impl PanelCache {
         let size = screen.size_in_pixels;
         let fits = |t: &wgpu::Texture| t.width() == size[0] && t.height() == size[1];
         if !self.texture.as_ref().is_some_and(fits) {
-            self.texture = Some(cache_texture(&gpu.device, size, format));
+            let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+            let texture = window_texture(gpu, "egui panel cache", size, format, usage);
+            self.texture = Some(texture);
             self.holds = None;
         }
         let want = (generation, cached.to_vec());
@@ -217,27 +221,6 @@ impl PanelCache {
     pub fn texture(&self) -> Option<&wgpu::Texture> {
         self.texture.as_ref()
     }
-}
-
-fn cache_texture(
-    device: &wgpu::Device,
-    size: [u32; 2],
-    format: wgpu::TextureFormat,
-) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("egui panel cache"),
-        size: wgpu::Extent3d {
-            width: size[0].max(1),
-            height: size[1].max(1),
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    })
 }
 
 #[cfg(test)]

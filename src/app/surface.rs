@@ -184,22 +184,11 @@ impl WindowSurface {
 
     /// A texture like the surface's, to compose the window into and read back.
     pub fn screenshot_texture(&self, gpu: &Gpu) -> wgpu::Texture {
-        gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("window screenshot"),
-            size: wgpu::Extent3d {
-                width: self.config.width,
-                height: self.config.height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: self.config.format,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                | wgpu::TextureUsages::COPY_SRC
-                | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        })
+        let size = [self.config.width, self.config.height];
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST;
+        window_texture(gpu, "window screenshot", size, self.config.format, usage)
     }
 
     /// Where each shown view's image goes in the window, in pixels: one
@@ -323,17 +312,7 @@ pub(super) fn compose_overlay(
     load: wgpu::LoadOp<wgpu::Color>,
     overlay: &OverlayDraw,
 ) {
-    let view = target.create_view(&Default::default());
-    let mut pass = encoder
-        .begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("egui pass"),
-            color_attachments: &[Some(color_attachment(&view, load))],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        })
-        .forget_lifetime();
+    let mut pass = egui_pass(encoder, target, load, "egui pass");
     overlay
         .renderer
         .render(&mut pass, overlay.paint_jobs, overlay.screen);
@@ -381,6 +360,39 @@ fn surface_config(
         view_formats: vec![],
         color_space: wgpu::SurfaceColorSpace::Auto,
     })
+}
+
+/// A 2D texture of `size` pixels (at least 1 x 1) in `format`.
+pub(super) fn window_texture(
+    gpu: &Gpu,
+    label: &str,
+    size: [u32; 2],
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    let [w, h] = size.map(|n| n.max(1));
+    crate::render::targets::texture(gpu, label, w, h, format, usage)
+}
+
+/// A render pass over all of `target`, loaded as `load`, for egui to
+/// draw into.
+pub(super) fn egui_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    target: &wgpu::Texture,
+    load: wgpu::LoadOp<wgpu::Color>,
+    label: &str,
+) -> wgpu::RenderPass<'static> {
+    let view = target.create_view(&Default::default());
+    encoder
+        .begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: &[Some(color_attachment(&view, load))],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+        .forget_lifetime()
 }
 
 fn color_attachment(

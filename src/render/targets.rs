@@ -96,7 +96,8 @@ pub struct Targets {
     pub capture: wgpu::Texture,
 }
 
-fn texture(
+/// A 2D texture of `w` x `h` texels, one mip level, in `format`.
+pub fn texture(
     gpu: &Gpu,
     label: &str,
     w: u32,
