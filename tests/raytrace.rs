@@ -896,7 +896,7 @@ fn an_empty_scene_shows_only_its_background() {
     )"#;
     let scene = Scene::from_ron_str(ron, "empty.ron", std::path::Path::new(".")).unwrap();
     let want = [0.25f32, 0.5, 0.75].map(srgb8);
-    for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+    for mode in [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace] {
         let r = rendered(&gpu, scene.clone(), settings(&scene, mode));
         assert_eq!(r.overflow_pixels(&gpu).unwrap(), 0, "{mode:?}: overflow");
         let img = r.read_srgb8(&gpu).unwrap();
@@ -945,7 +945,7 @@ fn uniform_table_copies_draw_what_the_storage_buffers_draw() {
     ];
     for (file, uniform, top_nodes) in cases {
         let scene = Scene::load(&dir.join(file)).unwrap();
-        for mode in [RenderMode::Raster, RenderMode::Raytrace] {
+        for mode in [RenderMode::Raster, RenderMode::Hybrid, RenderMode::Raytrace] {
             let settings = RenderSettings {
                 width: 96,
                 height: 54,

@@ -527,8 +527,10 @@ impl SceneAccel {
                 node.left_or_first += shift;
             }
         }
-        for s in &mut shapes {
-            if s.kind == SHAPE_MESH {
+        // An unused mesh has no bottom level: its root stays 0, which no
+        // ray reaches (no instance shows it).
+        for (s, used) in shapes.iter_mut().zip(&used) {
+            if s.kind == SHAPE_MESH && *used {
                 s.blas_root += shift;
             }
         }

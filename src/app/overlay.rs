@@ -288,7 +288,8 @@ impl Painter {
             },
         };
         self.last = Some(tess.clone());
-        let cached = views.and_then(|v| panel_cache::split(&tess.jobs, ppp, size_px, v));
+        let split = views.and_then(|v| Some((panel_cache::split(&tess.jobs, ppp, size_px, v)?, v)));
+        let cached = split.as_ref().map(|(mask, _)| mask.clone());
         let mut extra = Vec::new();
         let paint_jobs = match &self.uploaded {
             Some((g, c, jobs)) if *g == tess.generation && *c == cached => jobs.clone(),
@@ -308,13 +309,12 @@ impl Painter {
                 jobs
             }
         };
-        let panel = cached.map(|mask| {
+        let panel = split.map(|(mask, views)| {
             let job_set = (tess.generation, &tess.jobs[..], &mask[..]);
+            let target = (&screen, background);
             PanelDraw {
-                redraw: self
-                    .panel
-                    .prepare(gpu, encoder, job_set, &screen, self.format),
-                copies: panel_cache::outside(views.unwrap_or_default(), size_px),
+                redraw: (self.panel).prepare((gpu, encoder), job_set, target, self.format),
+                copies: panel_cache::outside(views, size_px),
             }
         });
         OverlayPaint {
@@ -448,40 +448,46 @@ mod tests {
             },
         );
         let ctx = egui::Context::default();
-        let raw = input(size);
-        let mut full = ctx.run_ui(raw, |ui| {
-            egui::Panel::left("panel")
-                .frame(panel_frame(ui.style()))
-                .default_size(120.0)
-                .show(ui, |ui| {
-                    for i in 0..5 {
-                        ui.label(format!("celray {i}"));
-                    }
-                });
-            let rect = ui.available_rect_before_wrap();
-            let painter = ui.painter_at(rect);
-            let text = egui::Color32::WHITE;
-            painter.text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                "view",
-                Default::default(),
-                text,
-            );
-        });
+        // The UI: a panel of five labels numbered from `first`, and a
+        // label over the view.
+        let run = |first: usize| {
+            ctx.run_ui(input(size), |ui| {
+                egui::Panel::left("panel")
+                    .frame(panel_frame(ui.style()))
+                    .default_size(120.0)
+                    .show(ui, |ui| {
+                        for i in first..first + 5 {
+                            ui.label(format!("celray {i}"));
+                        }
+                    });
+                let rect = ui.available_rect_before_wrap();
+                let white = egui::Color32::WHITE;
+                let centre = egui::Align2::CENTER_CENTER;
+                (ui.painter_at(rect)).text(
+                    rect.center(),
+                    centre,
+                    "view",
+                    Default::default(),
+                    white,
+                );
+            })
+        };
         let mut painters = [
             Painter::new(&gpu.device, format),
             Painter::new(&gpu.device, format),
         ];
-        for (id, deltas) in full.textures_delta.set.drain() {
-            for delta in &deltas {
-                painters
-                    .iter_mut()
-                    .for_each(|p| p.update_texture(&gpu, id, delta));
+        let shapes_of = |mut full: egui::FullOutput, painters: &mut [Painter; 2]| {
+            for (id, deltas) in full.textures_delta.set.drain() {
+                for delta in &deltas {
+                    painters
+                        .iter_mut()
+                        .for_each(|p| p.update_texture(&gpu, id, delta));
+                }
             }
-        }
+            full.shapes
+        };
         let background = background(ctx.global_style().visuals.panel_fill);
-        let shapes = full.shapes;
+        let shapes = shapes_of(run(0), &mut painters);
         let frame = |shapes: Vec<egui::epaint::ClippedShape>, again| OverlayFrame {
             shapes,
             pixels_per_point: 1.0,
@@ -490,11 +496,14 @@ mod tests {
             again,
         };
         // The view fills the window right of the panel (egui's panel is
-        // 120 points wide here, its edge line at x = 120).
-        let view_at = (121, 0);
-        let view_size = (size[0] - view_at.0, size[1]);
-        let views = [PxRect::at(view_at, view_size)];
-        let compose = |painter: &mut Painter, frame: OverlayFrame, cached: bool| {
+        // 120 points wide here, its edge line at x = 120); later a smaller
+        // one, moved.
+        let fill = ((121, 0), (size[0] - 121, size[1]));
+        let moved = ((150, 20), (120, 80));
+        type At = ((u32, u32), (u32, u32));
+        let compose = |painter: &mut Painter, frame: OverlayFrame, cached: bool, view: At| {
+            let (view_at, view_size) = view;
+            let views = [PxRect::at(view_at, view_size)];
             let target = texture(
                 "window",
                 wgpu::TextureUsages::RENDER_ATTACHMENT
@@ -521,11 +530,40 @@ mod tests {
             (window, redrawn, paint.paint_jobs.len())
         };
         let [plain, cached] = &mut painters;
-        let (want, _, all_jobs) = compose(plain, frame(shapes.clone(), false), false);
-        let (first, redrawn, left) = compose(cached, frame(shapes, false), true);
-        let (again, redrawn_again, _) = compose(cached, frame(Vec::new(), true), true);
+        let (want, _, all_jobs) = compose(plain, frame(shapes.clone(), false), false, fill);
+        let (first, redrawn, left) = compose(cached, frame(shapes.clone(), false), true, fill);
+        let (again, redrawn_again, _) = compose(cached, frame(Vec::new(), true), true, fill);
+        // The same shapes tessellated anew (the UI ran again): the cache
+        // holds their jobs already.
+        let (anew, redrawn_anew, _) = compose(cached, frame(shapes, false), true, fill);
+        // The view moved and shrunk, the jobs the same: the window outside
+        // it now comes from the cache too.
+        let (want_moved, _, _) = compose(plain, frame(Vec::new(), true), false, moved);
+        let (got_moved, _, _) = compose(cached, frame(Vec::new(), true), true, moved);
+        // Other text in the panel: drawn into the cache again.
+        let other = shapes_of(run(5), &mut painters);
+        let [plain, cached] = &mut painters;
+        let (want_other, _, _) = compose(plain, frame(other.clone(), false), false, fill);
+        let (got_other, redrawn_other, _) = compose(cached, frame(other, false), true, fill);
+        assert_eq!(
+            redrawn_other,
+            Some(true),
+            "other jobs are drawn into the cache"
+        );
+        assert!(want_other != want, "the other text shows");
+        assert!(
+            got_other == want_other,
+            "the window with other text differs"
+        );
         assert_eq!(redrawn, Some(true), "the first frame draws the cache");
         assert_eq!(redrawn_again, Some(false), "the next only copies it");
+        assert_eq!(redrawn_anew, Some(false), "the same jobs tessellated anew");
+        assert!(anew == want, "the window after a new tessellation differs");
+        assert!(want_moved != want, "the moved view shows");
+        assert!(
+            got_moved == want_moved,
+            "the window with the view moved differs"
+        );
         assert!(
             0 < left && left < all_jobs,
             "{left} of {all_jobs} jobs drawn over the window"

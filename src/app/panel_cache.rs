@@ -149,6 +149,17 @@ pub(super) fn outside(views: &[PxRect], size: [u32; 2]) -> Vec<PxRect> {
     out
 }
 
+/// Whether two lists of jobs draw the same: the same meshes under the
+/// same clip rectangles (a callback is never the same).
+fn same_jobs(a: &[ClippedPrimitive], b: &[ClippedPrimitive]) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(a, b)| {
+            a.clip_rect == b.clip_rect
+                && matches!((&a.primitive, &b.primitive),
+                    (Primitive::Mesh(x), Primitive::Mesh(y)) if x == y)
+        })
+}
+
 /// The jobs whose `cached` flag is `which`, in order.
 pub(super) fn pick(
     jobs: &[ClippedPrimitive],
@@ -164,9 +175,18 @@ pub(super) fn pick(
 pub(super) struct PanelCache {
     pub renderer: egui_wgpu::Renderer,
     texture: Option<wgpu::Texture>,
-    /// What `texture` holds: the tessellation's number and which of its
-    /// jobs; `None` until drawn.
-    holds: Option<(u64, Vec<bool>)>,
+    /// What `texture` holds; `None` until drawn.
+    holds: Option<Held>,
+}
+
+/// What the cache's texture holds: the jobs drawn into it, over which
+/// background, at which scale; and the last tessellation (its number and
+/// which of its jobs were cached) found to hold the same.
+struct Held {
+    jobs: super::overlay::PaintJobs,
+    background: wgpu::Color,
+    pixels_per_point: f32,
+    seen: (u64, Vec<bool>),
 }
 
 /// This frame's use of the cache.
@@ -187,18 +207,19 @@ impl PanelCache {
     }
 
     /// Makes the cache ready for tessellation `generation`'s `jobs` of
-    /// which `cached` are cached, on a window of `screen`'s size; returns
-    /// the jobs to draw into it, where it does not hold them yet (uploaded
-    /// into its renderer's buffers).
+    /// which `cached` are cached, over `background`, on a window of
+    /// `screen`'s size; returns the jobs to draw into it where it does not
+    /// hold the same already (uploaded into its renderer's buffers). A new
+    /// tessellation of the same jobs (the UI runs a few times a second,
+    /// and every frame while input arrives) draws nothing.
     pub fn prepare(
         &mut self,
-        gpu: &crate::gpu::Gpu,
-        encoder: &mut wgpu::CommandEncoder,
+        (gpu, encoder): (&crate::gpu::Gpu, &mut wgpu::CommandEncoder),
         (generation, jobs, cached): (u64, &[ClippedPrimitive], &[bool]),
-        screen: &egui_wgpu::ScreenDescriptor,
+        (screen, background): (&egui_wgpu::ScreenDescriptor, wgpu::Color),
         format: wgpu::TextureFormat,
     ) -> Option<super::overlay::PaintJobs> {
-        let size = screen.size_in_pixels;
+        let size = screen.size_in_pixels.map(|n| n.max(1));
         let fits = |t: &wgpu::Texture| t.width() == size[0] && t.height() == size[1];
         if !self.texture.as_ref().is_some_and(fits) {
             let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
@@ -206,14 +227,28 @@ impl PanelCache {
             self.texture = Some(texture);
             self.holds = None;
         }
-        let want = (generation, cached.to_vec());
-        if self.holds.as_ref() == Some(&want) {
-            return None;
+        let seen = (generation, cached.to_vec());
+        let ppp = screen.pixels_per_point;
+        let same_frame = |h: &Held| h.background == background && h.pixels_per_point == ppp;
+        if let Some(held) = self.holds.as_mut().filter(|h| same_frame(h)) {
+            if held.seen == seen {
+                return None;
+            }
+            let picked = pick(jobs, cached, true);
+            if same_jobs(&held.jobs, &picked) {
+                held.seen = seen;
+                return None;
+            }
         }
         let picked = pick(jobs, cached, true);
         // No callbacks among them, so no command buffers come back.
         let _ = (self.renderer).update_buffers(&gpu.device, &gpu.queue, encoder, &picked, screen);
-        self.holds = Some(want);
+        self.holds = Some(Held {
+            jobs: picked.clone(),
+            background,
+            pixels_per_point: ppp,
+            seen,
+        });
         Some(picked)
     }
 

@@ -17,8 +17,9 @@ pub struct PassTimes {
     /// The accumulate (with outlines) and reproject passes.
     pub accumulate_ms: f64,
     pub resolve_ms: f64,
-    /// The views' images copied into the window (where it can be copied
-    /// into; where egui draws them, that is in `egui_ms`).
+    /// The views' images copied into the window, with egui's panel cache
+    /// outside them or else the window's clear (where it can be copied
+    /// into; where egui draws the views, that is in `egui_ms`).
     pub copy_ms: f64,
     /// egui drawing the panel and labels over the window: the jobs the
     /// panel cache does not give, and on the frames that redraw it, the
