@@ -413,8 +413,7 @@ impl SceneAccel {
         // by index) but gets no bottom level or CSG program: no ray can
         // reach one, so it would only lengthen the buffers and the
         // kernels' private arrays.
-        let mut used = vec![false; scene.shapes.len()];
-        scene.used_shapes().for_each(|(id, _)| used[id] = true);
+        let used = scene.shapes_shown();
         for (id, shape) in scene.shapes.iter().enumerate() {
             let (kind, params) = shape_params(shape);
             let mut gpu_shape = GpuShape {

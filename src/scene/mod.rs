@@ -418,39 +418,48 @@ impl Scene {
         self.shape_names.iter().position(|n| n == name)
     }
 
+    /// Per shape of [`Scene::shapes`], whether some instance shows it.
+    pub fn shapes_shown(&self) -> Vec<bool> {
+        let mut shown = vec![false; self.shapes.len()];
+        for instance in &self.instances {
+            shown[instance.shape] = true;
+        }
+        shown
+    }
+
     /// The shapes some instance shows, each once, in the order of
     /// [`Scene::shapes`]: what a pipeline must be able to draw. A shape
     /// the scene defines but no instance uses is left out.
     /// Yields each with its index.
     pub fn used_shapes(&self) -> impl Iterator<Item = (usize, &Shape)> {
-        let mut used = vec![false; self.shapes.len()];
-        for instance in &self.instances {
-            used[instance.shape] = true;
-        }
-        let shapes = self.shapes.iter().enumerate().zip(used);
-        shapes.filter_map(|(s, u)| u.then_some(s))
+        let shapes = self.shapes.iter().enumerate().zip(self.shapes_shown());
+        shapes.filter_map(|(s, shown)| shown.then_some(s))
     }
 
-    /// The materials some visible surface can show, each once, in the
-    /// order of [`Scene::materials`]: the instances' own and those the
-    /// leaves of their CSG shapes name. A material no surface shows is
-    /// left out.
-    pub fn used_materials(&self) -> impl Iterator<Item = &Material> {
-        let mut used = vec![false; self.materials.len()];
+    /// Per material of [`Scene::materials`], whether some visible surface
+    /// can show it: the instances' own and those the leaves of their CSG
+    /// shapes name.
+    pub fn materials_shown(&self) -> Vec<bool> {
+        let mut shown = vec![false; self.materials.len()];
         for instance in &self.instances {
-            used[instance.material] = true;
+            shown[instance.material] = true;
             if let Shape::Csg(csg) = &self.shapes[instance.shape] {
                 for leaf in csg.root.leaves() {
                     if let Some(m) = leaf.material {
-                        used[m] = true;
+                        shown[m] = true;
                     }
                 }
             }
         }
-        self.materials
-            .iter()
-            .zip(used)
-            .filter_map(|(m, u)| u.then_some(m))
+        shown
+    }
+
+    /// The materials some visible surface can show
+    /// ([`Scene::materials_shown`]), each once, in the order of
+    /// [`Scene::materials`]. A material no surface shows is left out.
+    pub fn used_materials(&self) -> impl Iterator<Item = &Material> {
+        (self.materials.iter().zip(self.materials_shown()))
+            .filter_map(|(m, shown)| shown.then_some(m))
     }
 }
 
@@ -483,11 +492,18 @@ mod tests {
         let mut expect = expect.to_vec();
         expect.sort();
         assert_eq!(shapes, expect, "each shown shape once, in order");
+        let shown = |mask: Vec<bool>| -> Vec<usize> {
+            (mask.iter().enumerate())
+                .filter_map(|(i, s)| s.then_some(i))
+                .collect()
+        };
+        assert_eq!(shown(scene.shapes_shown()), expect);
+        let mut expect = ["plain", "bore"].map(|n| scene.material_id(n).unwrap());
+        expect.sort();
+        assert_eq!(shown(scene.materials_shown()), expect);
         let materials: Vec<&Material> = scene.used_materials().collect();
-        let named = |n: &str| &scene.materials[scene.material_id(n).unwrap()];
-        let mut expect = vec![named("plain"), named("bore")];
-        expect.sort_by_key(|m| scene.materials.iter().position(|x| std::ptr::eq(x, *m)));
-        assert_eq!(materials, expect);
+        let at: Vec<&Material> = expect.iter().map(|&i| &scene.materials[i]).collect();
+        assert_eq!(materials, at, "the shown materials, in order");
     }
 
     /// The built-in scene still finds its cow when the assets directory is
