@@ -469,14 +469,16 @@ mod tests {
 
     /// Only what an instance shows counts as used: the instances' shapes
     /// and materials and the materials their CSG leaves name; a CSG shape
-    /// no instance shows does not bring in its leaves' materials.
+    /// no instance shows does not bring in its leaves' materials. Each is
+    /// given once, in the scene's order: "drilled" is shown before "ball"
+    /// and "plain" before "bore" (a leaf's), but each is defined after.
     #[test]
     fn used_shapes_and_materials_are_what_instances_show() {
         let ron = r#"(version: 1,
             camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 8, height: 8),
             lights: [],
-            materials: { "plain": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong),
-                         "bore": (base_color: (0.0, 0.0, 1.0), model: Toon(bands: 3)),
+            materials: { "bore": (base_color: (0.0, 0.0, 1.0), model: Toon(bands: 3)),
+                         "plain": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong),
                          "cut": (base_color: (1.0, 0.0, 0.0), model: BlinnPhong),
                          "mirror": (base_color: (1.0, 1.0, 1.0), model: BlinnPhong, reflectivity: 0.9) },
             shapes: { "ball": Sphere(radius: 1.0),
