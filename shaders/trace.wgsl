@@ -534,6 +534,9 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
     var hit: TraceHit;
     var raster_may_show = true;
     var accumulates = false;
+    // Whether the tile's primary hits cast no shadow ray (TILE_UNSHADOWED:
+    // the CPU proved every one culled).
+    var unshadowed = false;
     // Whether this pixel's normal, depth and id are stored: everywhere
     // unless the tile's word says no pass reads them this sample.
     var stores_gbuffer = true;
@@ -554,6 +557,7 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
         }
         raster_may_show = (flags & TILE_MESH_MAY_SHOW) != 0u;
         accumulates = (flags & TILE_TRACE_ACCUMULATES) != 0u;
+        unshadowed = (flags & TILE_UNSHADOWED) != 0u;
         // A record of at most one instance is read from its summary.
         let summary = flags >> TILE_RECORD_SHIFT;
         var listed = true;
@@ -649,7 +653,10 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
         // The instance whose outside the shadow rays leave (none when the
         // ray hit a surface from behind).
         let leaving = select(NO_HIT, hit.instance, dot(hit.geometric, d) < 0.0);
-        let shaded = shade_hit(p, n, -d, m, hit.instance, leaving, going);
+        // A primary hit of a TILE_UNSHADOWED tile asks for no shadow ray
+        // (shade_hit's `going` only lets its lanes cast them).
+        let casts = going && !(bounce == 0u && unshadowed);
+        let shaded = shade_hit(p, n, -d, m, hit.instance, leaving, casts);
         if going {
             colour += weight * (1.0 - reflectivity) * shaded;
         }

@@ -1433,6 +1433,9 @@ fn selected_tables_draw_what_indexed_reads_draw() {
 /// instance count. A ball against the sky is a fifth case: its tiles
 /// list the ball alone or nothing, which the kernel takes from the
 /// tile's flag word (the record's summary) without reading the record.
+/// The floors of the default and CSG scenes have tiles the CPU proves
+/// unshadowed (`TILE_UNSHADOWED`, whose primary hits cast no shadow ray;
+/// the walk reads no flags and casts them all), and tiles it does not.
 #[test]
 fn primary_tiles_draw_what_the_walk_draws() {
     let gpu = gpu();
@@ -1491,10 +1494,18 @@ fn primary_tiles_draw_what_the_walk_draws() {
         // that the pictures above compare that path with the walk too).
         use celray::gpu::twins::{
             PRIMARY_TILE_WORDS, TILE_MESH_MAY_SHOW, TILE_RECORD_READ, TILE_RECORD_SHIFT,
+            TILE_UNSHADOWED,
         };
         let count = tiles.len() / (PRIMARY_TILE_WORDS as usize + 1);
         assert_eq!(count, 21 * 12, "{file}: 8 x 8 tiles over 164 x 92");
         let flags = &tiles[tiles.len() - count..];
+        if file != "a ball" {
+            let unshadowed = flags.iter().filter(|&&f| f & TILE_UNSHADOWED != 0).count();
+            assert!(
+                unshadowed > 0 && unshadowed < count / 2,
+                "{file} {mode:?}: {unshadowed} of {count} tiles proven unshadowed"
+            );
+        }
         let summaries: Vec<u32> = flags.iter().map(|f| f >> TILE_RECORD_SHIFT).collect();
         for (t, &s) in summaries.iter().enumerate() {
             let record = &tiles[t * PRIMARY_TILE_WORDS as usize..][..PRIMARY_TILE_WORDS as usize];

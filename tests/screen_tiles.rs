@@ -2,8 +2,8 @@
 //! (`accel::screen_tiles`), against the CPU tracer: no GPU needed.
 use celray::accel::bvh::Aabb;
 use celray::accel::screen_tiles::{
-    primary_tiles, reached_tiles, smooth_plane_tiles, smooth_sphere_tiles, tile_list, ScreenBound,
-    SmoothSteps, TILE_PAD_PX,
+    plane_region_tiles, primary_tiles, reached_tiles, smooth_plane_tiles, smooth_sphere_tiles,
+    tile_list, ScreenBound, SmoothSteps, TILE_PAD_PX,
 };
 use celray::accel::SceneAccel;
 use celray::gpu::twins::{PRIMARY_TILE_MAX, PRIMARY_TILE_WORDS};
@@ -988,4 +988,83 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_plane() {
         &cases[..1],
     );
     assert!(cut[0].claimed > 0, "tiles beyond the cut are claimed");
+}
+
+/// The proof behind `TILE_UNSHADOWED`: where `plane_region_tiles` finds
+/// the floor's region under a tile culled (`CulledRegions::all_culled`),
+/// every pixel of the tile whose ray (the kernel's, at sub-pixel offsets
+/// at the pixel's corners) hits the floor starts a shadow ray that the
+/// kernel's query culls (`may_be_blocked` false, with no convex
+/// receiver to leave: the strictest answer), from where the kernel starts
+/// it (the ray epsilon off the floor, on the eye's side). The proof is
+/// not empty, and it is not the whole floor: some floor pixels outside
+/// the proven tiles cast rays that may be blocked (the solids' shadows),
+/// so a proof that ignored the grid's cells would fail here.
+#[test]
+fn unshadowed_tiles_cast_only_culled_shadow_rays() {
+    use celray::accel::shadow_cull::{self, CulledRegions};
+    let (scene, accel) = scene();
+    let cull = shadow_cull::build(&accel, &scene.lights, true);
+    let celray::scene::Light::Directional { direction, .. } = scene.lights[0] else {
+        panic!("the test scene's light is the sun");
+    };
+    let to_light = -direction.normalize();
+    let regions = CulledRegions::new(&cull.lights[0], &cull.cells, to_light).expect("culled");
+    let floor = (accel.exact_planes.iter())
+        .find(|p| !p.face && p.instance == 0)
+        .expect("the floor is an exact plane");
+    let (lo, hi) = scene.bounds();
+    let epsilon = ((hi - lo).length() * 0.5).max(1e-3) * 1e-4;
+    let size = (scene.camera.width, scene.camera.height);
+    let tiles_x = size.0.div_ceil(8) as usize;
+    let (mut proven, mut blocked_elsewhere) = (0, 0);
+    for (sx, sy) in [(0.0, 0.0), (0.999, 0.999), (0.0, 0.999), (0.5, 0.5)] {
+        let depth = depth_range(&scene.camera, scene.bounds());
+        let cam = sample_camera(&scene.camera, size, Vec2::new(sx, sy), Vec2::ZERO, depth);
+        let region = |points: &[Vec3]| regions.all_culled(points);
+        let tiles = plane_region_tiles(
+            floor,
+            cam.clip_from_world,
+            size,
+            8,
+            4,
+            epsilon.into(),
+            region,
+        );
+        for y in 0..size.1 {
+            for x in 0..size.0 {
+                let (o, d) = kernel_ray(cam.clip_from_world, size, x, y);
+                let Some(h) = accel.closest_hit(o, d, 0.0, f32::INFINITY).hit else {
+                    continue;
+                };
+                if h.instance != 0 {
+                    continue;
+                }
+                let facing = if h.geometric.dot(d) > 0.0 {
+                    -h.normal
+                } else {
+                    h.normal
+                };
+                let origin = o + d * h.t + facing * epsilon;
+                let may = shadow_cull::may_be_blocked(
+                    &cull.lights[0],
+                    &cull.cells,
+                    origin,
+                    to_light,
+                    u32::MAX,
+                );
+                if tiles[(y / 8) as usize * tiles_x + (x / 8) as usize] {
+                    assert!(!may, "pixel ({x}, {y}) of a proven tile may be shadowed");
+                    proven += 1;
+                } else if may {
+                    blocked_elsewhere += 1;
+                }
+            }
+        }
+    }
+    assert!(proven > 4 * 2000, "{proven} floor pixels proven");
+    assert!(
+        blocked_elsewhere > 500,
+        "{blocked_elsewhere} floor pixels may be shadowed"
+    );
 }

@@ -88,6 +88,14 @@ pub const TILE_TRACE_ACCUMULATES: u32 = 2;
 /// the trace pass does not store them. Never set on a moving frame, whose
 /// reproject pass reads the whole G-buffer.
 pub const TILE_GBUFFER_SKIPS: u32 = 4;
+/// Bit of a tile's word after the records: every primary hit of the tile
+/// is on one static quad or disk (the record lists it alone, and no
+/// rasterized mesh may show), and the shadow ray of each such hit towards
+/// the one light that casts shadows is culled by `shadow_query` (the CPU
+/// proves it for the region the tile's rays meet,
+/// [`crate::accel::shadow_cull::CulledRegions`]): the trace pass casts no
+/// shadow ray from the tile's primary hits and asks nothing.
+pub const TILE_UNSHADOWED: u32 = 8;
 /// Where a tile's word after the records keeps, above its flag bits, the
 /// summary of the tile's record
 /// ([`crate::accel::screen_tiles::record_summary`]): 0 where the record

@@ -891,6 +891,70 @@ pub fn smooth_plane_tiles(
     out
 }
 
+/// Per tile of `tile_px` over `size`, row by row: true where `culled`
+/// holds for a region around every point at which a primary ray of the
+/// tile (its rectangle grown by [`TILE_PAD_PX`] for the jitter) meets
+/// `plane`'s infinite plane, moved `offset` along its unit normal towards
+/// the eye (where the kernel starts its shadow rays: the hit's normal
+/// faces the ray). The tiles are taken in square groups of `group` x
+/// `group`, one region a group: the convex hull of the points where the
+/// group's four corner rays meet the plane, each moved from half to twice
+/// `offset` (a margin for the kernel's rounding). Where those four meet
+/// it in front of the eye, every ray between them does (a positive
+/// combination of them, in the same half of directions), inside that
+/// hull; where one does not, the group's tiles are false.
+pub fn plane_region_tiles(
+    plane: &ExactPlane,
+    clip_from_world: Mat4,
+    size: (u32, u32),
+    tile_px: u32,
+    group: u32,
+    offset: f64,
+    culled: impl Fn(&[Vec3]) -> bool,
+) -> Vec<bool> {
+    let tiles = tile_grid(size, tile_px);
+    let mut out = vec![false; tiles.0 * tiles.1];
+    let cones = TileCones::new(clip_from_world, size, tile_px * group, 0);
+    let Some((eye, _)) = cones.rays else {
+        return out;
+    };
+    let m = plane.object_from_world.as_dmat4();
+    let o = m.transform_point3(eye);
+    // The world normal on the eye's side: the gradient of the
+    // object-space height, signed as the eye's.
+    let normal = o.y.signum() * DVec3::new(m.x_axis.y, m.y_axis.y, m.z_axis.y).normalize();
+    if !normal.is_finite() || o.y == 0.0 {
+        return out;
+    }
+    let group = group as usize;
+    let groups = (tiles.0.div_ceil(group), tiles.1.div_ceil(group));
+    for gy in 0..groups.1 {
+        for gx in 0..groups.0 {
+            let (lo, hi) = cones.tile_rect(gx, gy, f64::from(TILE_PAD_PX));
+            let corners = [(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)];
+            let mut points = [Vec3::ZERO; 8];
+            let meets = corners.iter().enumerate().all(|(k, &(x, y))| {
+                let Some(v) = cones.ray(x, y) else {
+                    return false;
+                };
+                let t = -o.y / m.transform_vector3(v).y;
+                let hit = eye + v * t;
+                points[2 * k] = (hit + normal * (0.5 * offset)).as_vec3();
+                points[2 * k + 1] = (hit + normal * (2.0 * offset)).as_vec3();
+                t > 0.0 && t.is_finite()
+            });
+            if !meets || !culled(&points) {
+                continue;
+            }
+            for ty in gy * group..((gy + 1) * group).min(tiles.1) {
+                out[ty * tiles.0 + gx * group..ty * tiles.0 + ((gx + 1) * group).min(tiles.0)]
+                    .fill(true);
+            }
+        }
+    }
+    out
+}
+
 /// Sphere `s` (centre xyz, radius w) grown by [`BOX_PAD_REL`] of its
 /// box's and the eye's largest coordinate, as [`grown_box`] grows boxes.
 fn grown_sphere(s: Vec4, eye: Vec3) -> Vec4 {

@@ -760,6 +760,96 @@ fn cull_record(u: Vec3, v: Vec3, lo: Vec2, per_unit: f32, dims: [u32; 2]) -> Gpu
     }
 }
 
+/// Where a light's shadow rays are culled over whole regions of
+/// receivers: the question the CPU asks for the trace pass's tiles
+/// (`TILE_UNSHADOWED`), answered from the same data as the kernel's
+/// `shadow_query`, with margins for the kernel's rounding.
+pub struct CulledRegions<'a> {
+    cull: &'a GpuShadowCull,
+    to_light: Vec3,
+    /// Per grid cell (x, y), the number of non-empty cells at x' < x and
+    /// y' < y: a summed-area table of (dims.x + 1) x (dims.y + 1).
+    occupied: Vec<u32>,
+}
+
+impl<'a> CulledRegions<'a> {
+    /// For the light whose cull record is `cull` (its cells in `cells`),
+    /// whose shadow rays all run along `to_light` (a directional light's);
+    /// `None` where the light's rays are not culled (`enabled` 0).
+    pub fn new(cull: &'a GpuShadowCull, cells: &[u32], to_light: Vec3) -> Option<Self> {
+        if cull.enabled == 0 {
+            return None;
+        }
+        let (w, h) = (cull.dims[0] as usize, cull.dims[1] as usize);
+        let mut occupied = vec![0u32; (w + 1) * (h + 1)];
+        for y in 0..h {
+            let mut row = 0;
+            for x in 0..w {
+                row += u32::from(cells[cull.first_cell as usize + y * w + x] != 0);
+                occupied[(y + 1) * (w + 1) + x + 1] = occupied[y * (w + 1) + x + 1] + row;
+            }
+        }
+        Some(CulledRegions {
+            cull,
+            to_light,
+            occupied,
+        })
+    }
+
+    /// Whether `shadow_query` culls (answers `SHADOW_SKIP` for) the shadow
+    /// ray from every point of the convex hull of `points`: every static
+    /// plane lies behind all of them, by twice the kernel's margin (its
+    /// side is linear over the hull, its margin convex, so the corners
+    /// bound both), and every grid cell that the hull's image on the grid
+    /// may touch, grown by a cell for the kernel's rounding, is empty or
+    /// off the grid. False where unsure.
+    pub fn all_culled(&self, points: &[Vec3]) -> bool {
+        let cull = self.cull;
+        for row in &cull.planes[..(cull.plane_count as usize).min(cull.planes.len())] {
+            let r = glam::Vec4::from_array(*row);
+            let along = r.xyz().dot(self.to_light);
+            let along_err = PLANE_MARGIN * r.xyz().abs().dot(self.to_light.abs());
+            let (mut lo, mut hi, mut err) = (f32::INFINITY, f32::NEG_INFINITY, 0.0f32);
+            for p in points {
+                let side = r.xyz().dot(*p) + r.w;
+                lo = lo.min(side);
+                hi = hi.max(side);
+                err = err.max(PLANE_MARGIN * (r.xyz().abs().dot(p.abs()) + r.w.abs()));
+            }
+            let behind = (lo > 2.0 * err && along > 2.0 * along_err)
+                || (hi < -2.0 * err && along < -2.0 * along_err);
+            if !behind {
+                return false;
+            }
+        }
+        let (w, h) = (cull.dims[0] as usize, cull.dims[1] as usize);
+        let u = glam::Vec4::from_array(cull.u);
+        let v = glam::Vec4::from_array(cull.v);
+        let scale = Vec2::from_array(cull.cells_per_unit);
+        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        for p in points {
+            let g = Vec2::new(u.xyz().dot(*p) - u.w, v.xyz().dot(*p) - v.w) * scale;
+            if !g.is_finite() {
+                return false;
+            }
+            lo = lo.min(g);
+            hi = hi.max(g);
+        }
+        let (lo, hi) = (lo - 1.0, hi + 1.0);
+        let dims = Vec2::new(w as f32, h as f32);
+        if w == 0 || h == 0 || hi.x < 0.0 || hi.y < 0.0 || lo.x >= dims.x || lo.y >= dims.y {
+            return true;
+        }
+        let (x0, y0) = (lo.x.max(0.0) as usize, lo.y.max(0.0) as usize);
+        let (x1, y1) = (
+            (hi.x.min(dims.x - 1.0) as usize) + 1,
+            (hi.y.min(dims.y - 1.0) as usize) + 1,
+        );
+        let at = |x: usize, y: usize| self.occupied[y * (w + 1) + x];
+        at(x1, y1) + at(x0, y0) == at(x0, y1) + at(x1, y0)
+    }
+}
+
 /// The CPU twin of the trace kernel's `shadow_may_be_blocked`: whether the
 /// shadow ray from `origin` along `to_light` may meet an occluder. False
 /// only where it provably meets none. `leaving`: the instance whose outside

@@ -73,6 +73,7 @@ pub fn u32_limits() -> Vec<U32Limit> {
         ("TILE_MESH_MAY_SHOW", twins::TILE_MESH_MAY_SHOW),
         ("TILE_TRACE_ACCUMULATES", twins::TILE_TRACE_ACCUMULATES),
         ("TILE_GBUFFER_SKIPS", twins::TILE_GBUFFER_SKIPS),
+        ("TILE_UNSHADOWED", twins::TILE_UNSHADOWED),
         ("TILE_RECORD_SHIFT", twins::TILE_RECORD_SHIFT),
         ("TILE_RECORD_READ", twins::TILE_RECORD_READ),
         ("OUTLINE_MARK_SEARCH", twins::OUTLINE_MARK_SEARCH),

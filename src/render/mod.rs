@@ -32,11 +32,12 @@ pub mod warmup;
 
 use wgpu::util::DeviceExt;
 
+use crate::accel::shadow_cull::CulledRegions;
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::twins::{
     FrameUniforms, ReprojectUniforms, OUTLINE_MARK_SEARCH, SHAPE_MESH, TEMPORAL_REJECT_CLIP,
     TEMPORAL_REJECT_NONE, TILE_GBUFFER_SKIPS, TILE_MESH_MAY_SHOW, TILE_RECORD_SHIFT,
-    TILE_TRACE_ACCUMULATES, TRACE_WORKGROUP,
+    TILE_TRACE_ACCUMULATES, TILE_UNSHADOWED, TRACE_WORKGROUP,
 };
 use crate::gpu::{readback, Gpu, GpuError};
 use crate::sampling::{Sample, SampleSchedule};
@@ -174,6 +175,10 @@ impl SampleTimer {
 /// blur that resampling adds each frame fades. Measured on the orbit test
 /// (FLIP against 256 samples, 96x64 and 192x128): 4 beat 3, 5, 8 and 16.
 pub const TEMPORAL_MAX_HISTORY: f32 = 4.0;
+
+/// The static quads and disks whose tiles are proven unshadowed
+/// ([`Renderer::flag_unshadowed`]), in the scene's order.
+const UNSHADOWED_PLANES: usize = 4;
 /// Half-width of the neighbourhood clipping box, in standard deviations
 /// (1.5 measured best of 0.75, 1.0, 1.25, 1.5 on the same test).
 pub const TEMPORAL_CLIP_GAMMA: f32 = 1.5;
@@ -733,14 +738,19 @@ impl Renderer {
         self.raster_draws(k).sequence(&self.buffers)
     }
 
+    /// How far the kernels start secondary rays off a surface: 1e-4 of
+    /// the scene's bounding radius.
+    fn ray_epsilon(&self) -> f32 {
+        let (lo, hi) = self.buffers.world_bounds;
+        ((hi - lo).length() * 0.5).max(1e-3) * 1e-4
+    }
+
     /// The uniforms of sample `k`.
     fn frame_uniforms(&self, k: u32) -> FrameUniforms {
         let s = &self.settings;
         let smp = self.sample_schedule().sample(k);
         let offset = smp.pixel_offset;
         let sc = self.camera_for(&smp);
-        let (lo, hi) = self.buffers.world_bounds;
-        let scene_radius = ((hi - lo).length() * 0.5).max(1e-3);
         // Inverted in f64: the projection's near/far ratio is large.
         let world_from_clip = sc.clip_from_world.as_dmat4().inverse().as_mat4();
         let max_outline = max_outline_px(&self.scene);
@@ -759,7 +769,7 @@ impl Renderer {
             world_from_clip: world_from_clip.to_cols_array_2d(),
             mode: self.primary_mode().to_gpu(),
             max_bounces: s.max_bounces,
-            ray_epsilon: scene_radius * 1e-4,
+            ray_epsilon: self.ray_epsilon(),
             // Set by render_sample, which knows whether the trace pass
             // reads its tiles.
             trace_accumulates: 0,
@@ -845,6 +855,7 @@ impl Renderer {
         for (record, word) in records.chunks_exact(words).zip(flag_words.iter_mut()) {
             *word |= crate::accel::screen_tiles::record_summary(record) << TILE_RECORD_SHIFT;
         }
+        self.flag_unshadowed(flag_words, clip_from_world);
         if !self.trace_may_accumulate {
             return (tiles, false);
         }
@@ -863,6 +874,52 @@ impl Renderer {
         let skips =
             still && flag_gbuffer_skips(&mut tiles, &self.scene, &self.settings, sources, tile_px);
         (tiles, skips)
+    }
+
+    /// Sets [`TILE_UNSHADOWED`] in the tiles' flag words (one per trace
+    /// tile, their record summaries in place) where every primary hit is
+    /// on one static quad or disk whose shadow rays there are all culled,
+    /// for the sample whose projection is `clip_from_world`: where exactly
+    /// one light casts shadows, a directional one with a cull grid
+    /// ([`CulledRegions`]). The planes' regions are proven in
+    /// groups of 4 x 4 tiles, about 900 a 1280 x 720 sample, the first
+    /// [`UNSHADOWED_PLANES`] planes only.
+    fn flag_unshadowed(&self, flag_words: &mut [u32], clip_from_world: glam::Mat4) {
+        let mut casting = (self.scene.lights.iter().enumerate()).filter(|(_, l)| l.casts_shadows());
+        let (Some((i, crate::scene::Light::Directional { direction, .. })), None) =
+            (casting.next(), casting.next())
+        else {
+            return;
+        };
+        let cull = &self.buffers.cull;
+        let Some(record) = cull.lights.get(i).filter(|_| i < 32) else {
+            return;
+        };
+        let to_light = -direction.normalize();
+        let Some(regions) = CulledRegions::new(record, &cull.cells, to_light) else {
+            return;
+        };
+        let epsilon = f64::from(self.ray_epsilon());
+        let size = (self.settings.width, self.settings.height);
+        let planes = self.buffers.accel.exact_planes.iter().filter(|p| !p.face);
+        for plane in planes.take(UNSHADOWED_PLANES) {
+            let proven = crate::accel::screen_tiles::plane_region_tiles(
+                plane,
+                clip_from_world,
+                size,
+                TRACE_WORKGROUP,
+                4,
+                epsilon,
+                |points| regions.all_culled(points),
+            );
+            let alone = (plane.instance as u32 + 1) << TILE_RECORD_SHIFT;
+            for (word, proven) in flag_words.iter_mut().zip(proven) {
+                let summary = *word & !((1 << TILE_RECORD_SHIFT) - 1);
+                if proven && summary == alone && *word & TILE_MESH_MAY_SHOW == 0 {
+                    *word |= TILE_UNSHADOWED;
+                }
+            }
+        }
     }
 
     /// Per accumulate tile of `tile_px`, 1 where a pixel of it may take an

@@ -175,6 +175,9 @@ pub struct SceneBuffers {
     /// rewritten when lights are edited.
     pub shadow_cull: wgpu::Buffer,
     pub shadow_cells: wgpu::Buffer,
+    /// What `shadow_cull` and `shadow_cells` hold, for the CPU's proofs
+    /// over the trace pass's tiles (`TILE_UNSHADOWED`).
+    pub cull: shadow_cull::ShadowCull,
     /// Whether `shadow_cells` has room for occluder lists
     /// (`Gpu::shadow_lists` at upload), which light edits keep; they are
     /// filled only where the trace kernel reads them
@@ -538,12 +541,13 @@ impl SceneBuffers {
 
     /// Rewrites the shadow cull data for edited `lights` (as many as at
     /// upload).
-    pub fn write_shadow_cull(&self, gpu: &Gpu, lights: &[Light]) {
+    pub fn write_shadow_cull(&mut self, gpu: &Gpu, lights: &[Light]) {
         let cull = shadow_cull::build(&self.accel, lights, self.shadow_lists);
         gpu.queue
             .write_buffer(&self.shadow_cull, 0, bytemuck::cast_slice(&cull.lights));
         gpu.queue
             .write_buffer(&self.shadow_cells, 0, bytemuck::cast_slice(&cull.cells));
+        self.cull = cull;
     }
 
     /// Uploads `scene`. Sizes over the adapter's limits are refused with a
@@ -857,6 +861,7 @@ impl SceneBuffers {
                 triangle_maps,
                 shadow_cull,
                 shadow_cells,
+                cull,
                 shadow_lists,
                 tables,
                 selected,
