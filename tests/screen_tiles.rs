@@ -999,12 +999,48 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_plane() {
 /// it (the ray epsilon off the floor, on the eye's side). The proof is
 /// not empty, and it is not the whole floor: some floor pixels outside
 /// the proven tiles cast rays that may be blocked (the solids' shadows),
-/// so a proof that ignored the grid's cells would fail here.
+/// so a proof that ignored the grid's cells would fail here. The test
+/// scene's level floor, then a tilted quad under a few solids.
 #[test]
 fn unshadowed_tiles_cast_only_culled_shadow_rays() {
-    use celray::accel::shadow_cull::{self, CulledRegions};
     let (scene, accel) = scene();
-    let cull = shadow_cull::build(&accel, &scene.lights, true);
+    let (proven, blocked) = check_unshadowed_tiles(&scene, &accel);
+    assert!(proven > 4 * 2000, "{proven} floor pixels proven");
+    assert!(blocked > 500, "{blocked} floor pixels may be shadowed");
+    let ron = r#"(version: 1,
+        camera: (eye: (1.0, 3.0, 7.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 45.0, width: 160, height: 100),
+        lights: [Directional(direction: (0.3, -1.0, -0.4), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) },
+        shapes: {
+            "floor": Plane(Quad(half_size: (6.0, 4.0))),
+            "ball": Sphere(radius: 0.5),
+            "crate": Box(half_extents: (0.4, 0.3, 0.5)),
+        },
+        instances: [
+            (shape: "floor", material: "m", transform: (translate: (0.0, -0.5, 0.0), rotate_deg: (12.0, 20.0, -8.0), scale: (1.0, 1.0, 1.5))),
+            (shape: "ball", material: "m", transform: (translate: (-1.0, 0.8, 0.5))),
+            (shape: "crate", material: "m", transform: (translate: (1.2, 0.6, -0.8), rotate_deg: (0.0, 30.0, 0.0))),
+        ],
+    )"#;
+    let scene = Scene::from_ron_str(ron, "tilted.ron", std::path::Path::new(".")).unwrap();
+    let order: Vec<usize> = (0..scene.instances.len()).collect();
+    let accel = SceneAccel::build(&scene, &order).unwrap();
+    let (proven, blocked) = check_unshadowed_tiles(&scene, &accel);
+    assert!(proven > 4 * 1000, "tilted: {proven} floor pixels proven");
+    assert!(
+        blocked > 200,
+        "tilted: {blocked} floor pixels may be shadowed"
+    );
+}
+
+/// [`unshadowed_tiles_cast_only_culled_shadow_rays`] for instance 0 of
+/// `scene`, a static quad, under its first light, a directional one:
+/// asserts the proof over four sub-pixel offsets and returns how many
+/// floor pixels of proven tiles it checked and how many floor pixels
+/// elsewhere may be shadowed.
+fn check_unshadowed_tiles(scene: &Scene, accel: &SceneAccel) -> (usize, usize) {
+    use celray::accel::shadow_cull::{self, CulledRegions};
+    let cull = shadow_cull::build(accel, &scene.lights, true);
     let celray::scene::Light::Directional { direction, .. } = scene.lights[0] else {
         panic!("the test scene's light is the sun");
     };
@@ -1062,9 +1098,5 @@ fn unshadowed_tiles_cast_only_culled_shadow_rays() {
             }
         }
     }
-    assert!(proven > 4 * 2000, "{proven} floor pixels proven");
-    assert!(
-        blocked_elsewhere > 500,
-        "{blocked_elsewhere} floor pixels may be shadowed"
-    );
+    (proven, blocked_elsewhere)
 }

@@ -899,7 +899,10 @@ pub fn smooth_plane_tiles(
 /// faces the ray). The tiles are taken in square groups of `group` x
 /// `group`, one region a group: the convex hull of the points where the
 /// group's four corner rays meet the plane, each moved from half to twice
-/// `offset` (a margin for the kernel's rounding). Where those four meet
+/// `offset`, and farther either way by a bound on the kernel's f32
+/// rounding of its hit (1e-6 of the eye's and the hit's coordinates,
+/// about 16 units in the last place): a hit whose rounding may reach the
+/// plane's other side is not proven. Where those four meet
 /// it in front of the eye, every ray between them does (a positive
 /// combination of them, in the same half of directions), inside that
 /// hull; where one does not, the group's tiles are false.
@@ -939,8 +942,9 @@ pub fn plane_region_tiles(
                 };
                 let t = -o.y / m.transform_vector3(v).y;
                 let hit = eye + v * t;
-                points[2 * k] = (hit + normal * (0.5 * offset)).as_vec3();
-                points[2 * k + 1] = (hit + normal * (2.0 * offset)).as_vec3();
+                let rounding = 1e-6 * (eye.abs().element_sum() + hit.abs().element_sum());
+                points[2 * k] = (hit + normal * (0.5 * offset - rounding)).as_vec3();
+                points[2 * k + 1] = (hit + normal * (2.0 * offset + rounding)).as_vec3();
                 t > 0.0 && t.is_finite()
             });
             if !meets || !culled(&points) {

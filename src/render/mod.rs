@@ -177,7 +177,7 @@ impl SampleTimer {
 pub const TEMPORAL_MAX_HISTORY: f32 = 4.0;
 
 /// The static quads and disks whose tiles are proven unshadowed
-/// ([`Renderer::flag_unshadowed`]), in the scene's order.
+/// ([`Renderer::flag_unshadowed`]): the first ones, in GPU instance order.
 const UNSHADOWED_PLANES: usize = 4;
 /// Half-width of the neighbourhood clipping box, in standard deviations
 /// (1.5 measured best of 0.75, 1.0, 1.25, 1.5 on the same test).
@@ -902,7 +902,11 @@ impl Renderer {
         let epsilon = f64::from(self.ray_epsilon());
         let size = (self.settings.width, self.settings.height);
         let planes = self.buffers.accel.exact_planes.iter().filter(|p| !p.face);
-        for plane in planes.take(UNSHADOWED_PLANES) {
+        // A summary holds instance indices below TILE_RECORD_READ - 1.
+        let summarized = |p: &&crate::accel::screen_tiles::ExactPlane| {
+            (p.instance as u32) < crate::gpu::twins::TILE_RECORD_READ - 1
+        };
+        for plane in planes.filter(summarized).take(UNSHADOWED_PLANES) {
             let proven = crate::accel::screen_tiles::plane_region_tiles(
                 plane,
                 clip_from_world,
