@@ -1039,13 +1039,14 @@ fn unshadowed_tiles_cast_only_culled_shadow_rays() {
 /// floor pixels of proven tiles it checked and how many floor pixels
 /// elsewhere may be shadowed.
 fn check_unshadowed_tiles(scene: &Scene, accel: &SceneAccel) -> (usize, usize) {
-    use celray::accel::shadow_cull::{self, CulledRegions};
+    use celray::accel::shadow_cull;
     let cull = shadow_cull::build(accel, &scene.lights, true);
     let celray::scene::Light::Directional { direction, .. } = scene.lights[0] else {
         panic!("the test scene's light is the sun");
     };
     let to_light = -direction.normalize();
-    let regions = CulledRegions::new(&cull.lights[0], &cull.cells, to_light).expect("culled");
+    // The regions the renderer proves tiles with, built with the cull data.
+    let regions = cull.sun.as_ref().expect("one sun: its rays are culled");
     let floor = (accel.exact_planes.iter())
         .find(|p| !p.face && p.instance == 0)
         .expect("the floor is an exact plane");

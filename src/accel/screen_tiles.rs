@@ -25,7 +25,7 @@
 
 use std::ops::RangeInclusive;
 
-use glam::{DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec4};
+use glam::{DMat4, DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec4};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
@@ -350,6 +350,25 @@ struct TileCones {
     pixel_angle: f64,
 }
 
+/// A corner ray of a tile where it meets a plane
+/// ([`TileCones::corner_plane_hits`]): the ray's world direction `v` from
+/// the eye, its parameter `t` there, and the hit `eye + v t` in the world
+/// and in the plane's object space.
+#[derive(Clone, Copy, Default)]
+struct CornerHit {
+    v: DVec3,
+    t: f64,
+    world: DVec3,
+    object: DVec3,
+}
+
+impl CornerHit {
+    /// Whether the ray meets the plane in front of the eye.
+    fn ahead(&self) -> bool {
+        self.t > 0.0 && self.t.is_finite()
+    }
+}
+
 /// A bounding sphere as [`TileCones::meets`] tests it: the unit direction
 /// from the eye to its centre, and the cosine of the largest angle a
 /// tile's axis may make with it and still have its cone meet the sphere.
@@ -421,6 +440,35 @@ impl TileCones {
     fn ray(&self, x: f64, y: f64) -> Option<DVec3> {
         let (_, [a, b, c]) = self.rays?;
         Some(a + x * b + y * c)
+    }
+
+    /// Where the four corner rays of tile (tx, ty)'s rectangle (grown by
+    /// [`TILE_PAD_PX`]) meet the plane y = 0 of the object space that `m`
+    /// maps the world to (`o`: the eye there); `None` without rays. A hit
+    /// is in front of the eye only where its `t` is positive and finite.
+    fn corner_plane_hits(
+        &self,
+        tx: usize,
+        ty: usize,
+        m: &DMat4,
+        o: DVec3,
+    ) -> Option<[CornerHit; 4]> {
+        let (eye, _) = self.rays?;
+        let (lo, hi) = self.tile_rect(tx, ty, f64::from(TILE_PAD_PX));
+        let corners = [(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)];
+        let mut hits = [CornerHit::default(); 4];
+        for (&(x, y), hit) in corners.iter().zip(&mut hits) {
+            let v = self.ray(x, y)?;
+            let dv = m.transform_vector3(v);
+            let t = -o.y / dv.y;
+            *hit = CornerHit {
+                v,
+                t,
+                world: eye + v * t,
+                object: o + dv * t,
+            };
+        }
+        Some(hits)
     }
 
     /// `sphere` (centre xyz, radius w) as [`TileCones::meets`] tests it;
@@ -853,25 +901,16 @@ pub fn smooth_plane_tiles(
         };
         for ty in ys {
             for tx in xs.clone() {
-                // The tile's rays, as its cone's: its rectangle grown by the
-                // reach and the padding.
-                let (lo, hi) = cones.tile_rect(tx, ty, f64::from(TILE_PAD_PX));
-                let corners = [(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)];
-                // The corner rays' hits on the plane (world), where they
-                // meet it inside its outline beyond the near plane.
-                let mut hits = [DVec3::ZERO; 4];
-                let meets_inside = corners.iter().zip(&mut hits).all(|(&(x, y), hit)| {
-                    let Some(v) = cones.ray(x, y) else {
-                        return false;
-                    };
-                    let dv = m.transform_vector3(v);
-                    let t = -o.y / dv.y;
-                    *hit = eye + v * t;
-                    t > 0.0
-                        && t.is_finite()
-                        && inside(o + dv * t)
-                        && (v * t).dot(forward) > near * 1.001
+                // The tile's rays, as its cone's (its rectangle grown by
+                // the reach and the padding), where they meet the plane
+                // inside its outline beyond the near plane.
+                let Some(corner_hits) = cones.corner_plane_hits(tx, ty, &m, o) else {
+                    continue;
+                };
+                let meets_inside = corner_hits.iter().all(|h| {
+                    h.ahead() && inside(h.object) && (h.v * h.t).dot(forward) > near * 1.001
                 });
+                let hits = corner_hits.map(|h| h.world);
                 let claimable = meets_inside && clear(tx, ty, &hits);
                 let Some(axis) = cones.axis(tx, ty).filter(|_| claimable) else {
                     continue;
@@ -933,21 +972,16 @@ pub fn plane_region_tiles(
     let groups = (tiles.0.div_ceil(group), tiles.1.div_ceil(group));
     for gy in 0..groups.1 {
         for gx in 0..groups.0 {
-            let (lo, hi) = cones.tile_rect(gx, gy, f64::from(TILE_PAD_PX));
-            let corners = [(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)];
+            let Some(hits) = cones.corner_plane_hits(gx, gy, &m, o) else {
+                return out;
+            };
             let mut points = [Vec3::ZERO; 8];
-            let meets = corners.iter().enumerate().all(|(k, &(x, y))| {
-                let Some(v) = cones.ray(x, y) else {
-                    return false;
-                };
-                let t = -o.y / m.transform_vector3(v).y;
-                let hit = eye + v * t;
-                let rounding = 1e-6 * (eye.abs().element_sum() + hit.abs().element_sum());
-                points[2 * k] = (hit + normal * (0.5 * offset - rounding)).as_vec3();
-                points[2 * k + 1] = (hit + normal * (2.0 * offset + rounding)).as_vec3();
-                t > 0.0 && t.is_finite()
-            });
-            if !meets || !culled(&points) {
+            for (k, h) in hits.iter().enumerate() {
+                let rounding = 1e-6 * (eye.abs().element_sum() + h.world.abs().element_sum());
+                points[2 * k] = (h.world + normal * (0.5 * offset - rounding)).as_vec3();
+                points[2 * k + 1] = (h.world + normal * (2.0 * offset + rounding)).as_vec3();
+            }
+            if !hits.iter().all(CornerHit::ahead) || !culled(&points) {
                 continue;
             }
             for ty in gy * group..((gy + 1) * group).min(tiles.1) {

@@ -66,6 +66,9 @@ pub const CELL_LIST_TRIANGLES: u32 = 64;
 pub struct ShadowCull {
     pub lights: Vec<GpuShadowCull>,
     pub cells: Vec<u32>,
+    /// For the CPU's proofs (not uploaded): the lone sun's culled regions
+    /// ([`the_sun`]), where its rays are culled.
+    pub sun: Option<CulledRegions>,
 }
 
 /// Lights that get a grid: the first ones (each grid is 64 KiB; a light
@@ -85,18 +88,24 @@ pub const MAX_LIST_WORDS: usize = 1 << 24;
 /// loop, where the list code cost more than it saved
 /// (docs/performance-history.md, twentieth session).
 pub fn lists_read(accel: &SceneAccel, lights: &[Light]) -> bool {
-    let mut casting = lights.iter().enumerate().filter(|(_, l)| l.casts_shadows());
-    let one_sun = match (casting.next(), casting.next()) {
-        (Some((i, light)), None) => {
-            i < MAX_CULL_LIGHTS && matches!(light, Light::Directional { .. })
-        }
-        _ => false,
-    };
-    one_sun
+    the_sun(lights).is_some()
         && accel
             .instances
             .iter()
             .any(|&(_, _, shape)| accel.shapes[shape as usize].kind < SHAPE_MESH)
+}
+
+/// The lone sun: where exactly one of `lights` casts shadows, and it is
+/// a directional light among the first [`MAX_CULL_LIGHTS`] (so it has a
+/// grid), its index and the unit direction its shadow rays run along.
+pub fn the_sun(lights: &[Light]) -> Option<(usize, Vec3)> {
+    let mut casting = lights.iter().enumerate().filter(|(_, l)| l.casts_shadows());
+    match (casting.next(), casting.next()) {
+        (Some((i, Light::Directional { direction, .. })), None) if i < MAX_CULL_LIGHTS => {
+            Some((i, -direction.normalize()))
+        }
+        _ => None,
+    }
 }
 
 /// The cull data of `lights` over the instances of `accel`. Where `lists`
@@ -137,6 +146,7 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
     let mut out = ShadowCull {
         lights: vec![bytemuck::Zeroable::zeroed(); lights.len().max(1)],
         cells,
+        sun: None,
     };
     let fill = per_light > 0 && lists_read(accel, lights);
     let (planes, boxes) = split_occluders(accel);
@@ -182,6 +192,8 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
             out.lights[i] = cull;
         }
     }
+    out.sun = the_sun(lights)
+        .and_then(|(i, to_light)| CulledRegions::new(&out.lights[i], &out.cells, to_light));
     out
 }
 
@@ -764,19 +776,20 @@ fn cull_record(u: Vec3, v: Vec3, lo: Vec2, per_unit: f32, dims: [u32; 2]) -> Gpu
 /// receivers: the question the CPU asks for the trace pass's tiles
 /// (`TILE_UNSHADOWED`), answered from the same data as the kernel's
 /// `shadow_query`, with margins for the kernel's rounding.
-pub struct CulledRegions<'a> {
-    cull: &'a GpuShadowCull,
+#[derive(Debug, Clone, PartialEq)]
+pub struct CulledRegions {
+    cull: GpuShadowCull,
     to_light: Vec3,
     /// Per grid cell (x, y), the number of non-empty cells at x' < x and
     /// y' < y: a summed-area table of (dims.x + 1) x (dims.y + 1).
     occupied: Vec<u32>,
 }
 
-impl<'a> CulledRegions<'a> {
+impl CulledRegions {
     /// For the light whose cull record is `cull` (its cells in `cells`),
     /// whose shadow rays all run along `to_light` (a directional light's);
     /// `None` where the light's rays are not culled (`enabled` 0).
-    pub fn new(cull: &'a GpuShadowCull, cells: &[u32], to_light: Vec3) -> Option<Self> {
+    pub fn new(cull: &GpuShadowCull, cells: &[u32], to_light: Vec3) -> Option<Self> {
         if cull.enabled == 0 {
             return None;
         }
@@ -790,7 +803,7 @@ impl<'a> CulledRegions<'a> {
             }
         }
         Some(CulledRegions {
-            cull,
+            cull: *cull,
             to_light,
             occupied,
         })
@@ -804,7 +817,7 @@ impl<'a> CulledRegions<'a> {
     /// may touch, grown by a cell for the kernel's rounding, is empty or
     /// off the grid. False where unsure.
     pub fn all_culled(&self, points: &[Vec3]) -> bool {
-        let cull = self.cull;
+        let cull = &self.cull;
         for row in &cull.planes[..(cull.plane_count as usize).min(cull.planes.len())] {
             let r = glam::Vec4::from_array(*row);
             let along = r.xyz().dot(self.to_light);

@@ -32,7 +32,6 @@ pub mod warmup;
 
 use wgpu::util::DeviceExt;
 
-use crate::accel::shadow_cull::CulledRegions;
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::twins::{
     FrameUniforms, ReprojectUniforms, OUTLINE_MARK_SEARCH, SHAPE_MESH, TEMPORAL_REJECT_CLIP,
@@ -880,23 +879,12 @@ impl Renderer {
     /// tile, their record summaries in place) where every primary hit is
     /// on one static quad or disk whose shadow rays there are all culled,
     /// for the sample whose projection is `clip_from_world`: where exactly
-    /// one light casts shadows, a directional one with a cull grid
-    /// ([`CulledRegions`]). The planes' regions are proven in
+    /// one light casts shadows, a directional one with a cull grid (its
+    /// [`CulledRegions`], built with the cull data). The planes' regions are proven in
     /// groups of 4 x 4 tiles, about 900 a 1280 x 720 sample, the first
     /// [`UNSHADOWED_PLANES`] planes only.
     fn flag_unshadowed(&self, flag_words: &mut [u32], clip_from_world: glam::Mat4) {
-        let mut casting = (self.scene.lights.iter().enumerate()).filter(|(_, l)| l.casts_shadows());
-        let (Some((i, crate::scene::Light::Directional { direction, .. })), None) =
-            (casting.next(), casting.next())
-        else {
-            return;
-        };
-        let cull = &self.buffers.cull;
-        let Some(record) = cull.lights.get(i).filter(|_| i < 32) else {
-            return;
-        };
-        let to_light = -direction.normalize();
-        let Some(regions) = CulledRegions::new(record, &cull.cells, to_light) else {
+        let Some(regions) = &self.buffers.cull.sun else {
             return;
         };
         let epsilon = f64::from(self.ray_epsilon());
