@@ -276,7 +276,28 @@ impl ScreenPolygon {
 /// The convex hull of `points` (Andrew's monotone chain) as its edges'
 /// outward unit normals n and offsets c (n . p <= c inside); none where
 /// the hull has no area (then no edge rules a tile out).
-fn convex_hull(points: &mut [DVec2]) -> Vec<(DVec2, f64)> {
+pub(crate) fn convex_hull(points: &mut [DVec2]) -> Vec<(DVec2, f64)> {
+    let hull = hull_vertices(points);
+    let area: f64 = (0..hull.len())
+        .map(|i| hull[i].perp_dot(hull[(i + 1) % hull.len()]))
+        .sum();
+    if hull.len() < 3 || area.abs() < 1e-9 {
+        return Vec::new();
+    }
+    // Counter-clockwise (positive area): the inside lies to the left of
+    // each edge, so the outward normal is the edge turned clockwise.
+    (0..hull.len())
+        .filter_map(|i| {
+            let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+            let n = DVec2::new(b.y - a.y, a.x - b.x).normalize_or_zero() * area.signum();
+            (n != DVec2::ZERO).then(|| (n, n.dot(a)))
+        })
+        .collect()
+}
+
+/// The corners of the convex hull of `points` (Andrew's monotone chain),
+/// in order around it.
+pub(crate) fn hull_vertices(points: &mut [DVec2]) -> Vec<DVec2> {
     points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
     let mut hull: Vec<DVec2> = Vec::with_capacity(2 * points.len());
@@ -295,21 +316,7 @@ fn convex_hull(points: &mut [DVec2]) -> Vec<(DVec2, f64)> {
     }
     // The last point is the first again.
     hull.pop();
-    let area: f64 = (0..hull.len())
-        .map(|i| hull[i].perp_dot(hull[(i + 1) % hull.len()]))
-        .sum();
-    if hull.len() < 3 || area.abs() < 1e-9 {
-        return Vec::new();
-    }
-    // Counter-clockwise (positive area): the inside lies to the left of
-    // each edge, so the outward normal is the edge turned clockwise.
-    (0..hull.len())
-        .filter_map(|i| {
-            let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
-            let n = DVec2::new(b.y - a.y, a.x - b.x).normalize_or_zero() * area.signum();
-            (n != DVec2::ZERO).then(|| (n, n.dot(a)))
-        })
-        .collect()
+    hull
 }
 
 /// The cones of rays through the tiles of one sample's image, for testing
@@ -442,19 +449,18 @@ impl TileCones {
         Some(a + x * b + y * c)
     }
 
-    /// Where the four corner rays of tile (tx, ty)'s rectangle (grown by
-    /// [`TILE_PAD_PX`]) meet the plane y = 0 of the object space that `m`
-    /// maps the world to (`o`: the eye there); `None` without rays. A hit
-    /// is in front of the eye only where its `t` is positive and finite.
+    /// Where the four corner rays of pixel rectangle `(lo, hi)` (a tile's
+    /// or a block's, [`TileCones::tile_rect`]) meet the plane y = 0 of the
+    /// object space that `m` maps the world to (`o`: the eye there);
+    /// `None` without rays. A hit is in front of the eye only where its
+    /// `t` is positive and finite.
     fn corner_plane_hits(
         &self,
-        tx: usize,
-        ty: usize,
+        (lo, hi): (DVec2, DVec2),
         m: &DMat4,
         o: DVec3,
     ) -> Option<[CornerHit; 4]> {
         let (eye, _) = self.rays?;
-        let (lo, hi) = self.tile_rect(tx, ty, f64::from(TILE_PAD_PX));
         let corners = [(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)];
         let mut hits = [CornerHit::default(); 4];
         for (&(x, y), hit) in corners.iter().zip(&mut hits) {
@@ -904,7 +910,8 @@ pub fn smooth_plane_tiles(
                 // The tile's rays, as its cone's (its rectangle grown by
                 // the reach and the padding), where they meet the plane
                 // inside its outline beyond the near plane.
-                let Some(corner_hits) = cones.corner_plane_hits(tx, ty, &m, o) else {
+                let rect = cones.tile_rect(tx, ty, f64::from(TILE_PAD_PX));
+                let Some(corner_hits) = cones.corner_plane_hits(rect, &m, o) else {
                     continue;
                 };
                 let meets_inside = corner_hits.iter().all(|h| {
@@ -956,7 +963,7 @@ pub fn plane_region_tiles(
 ) -> Vec<bool> {
     let tiles = tile_grid(size, tile_px);
     let mut out = vec![false; tiles.0 * tiles.1];
-    let cones = TileCones::new(clip_from_world, size, tile_px * group, 0);
+    let cones = TileCones::new(clip_from_world, size, tile_px, 0);
     let Some((eye, _)) = cones.rays else {
         return out;
     };
@@ -969,10 +976,16 @@ pub fn plane_region_tiles(
         return out;
     }
     let group = group as usize;
-    let groups = (tiles.0.div_ceil(group), tiles.1.div_ceil(group));
-    for gy in 0..groups.1 {
-        for gx in 0..groups.0 {
-            let Some(hits) = cones.corner_plane_hits(gx, gy, &m, o) else {
+    for gy in (0..tiles.1).step_by(group) {
+        for gx in (0..tiles.0).step_by(group) {
+            // The group's rectangle, from its first tile's to its last's.
+            let pad = f64::from(TILE_PAD_PX);
+            let last = (gx + group - 1, gy + group - 1);
+            let rect = (
+                cones.tile_rect(gx, gy, pad).0,
+                cones.tile_rect(last.0, last.1, pad).1,
+            );
+            let Some(hits) = cones.corner_plane_hits(rect, &m, o) else {
                 return out;
             };
             let mut points = [Vec3::ZERO; 8];
@@ -984,9 +997,8 @@ pub fn plane_region_tiles(
             if !hits.iter().all(CornerHit::ahead) || !culled(&points) {
                 continue;
             }
-            for ty in gy * group..((gy + 1) * group).min(tiles.1) {
-                out[ty * tiles.0 + gx * group..ty * tiles.0 + ((gx + 1) * group).min(tiles.0)]
-                    .fill(true);
+            for ty in gy..(gy + group).min(tiles.1) {
+                out[ty * tiles.0 + gx..ty * tiles.0 + (gx + group).min(tiles.0)].fill(true);
             }
         }
     }

@@ -34,7 +34,7 @@
 //! program, and the traversal runs whenever one of them casts a ray; most
 //! of a lit floor's pixels now cast none (docs/performance-history.md).
 
-use glam::{Vec2, Vec3, Vec4Swizzles};
+use glam::{DVec2, DVec3, Vec2, Vec3, Vec4Swizzles};
 
 use crate::accel::bvh::Aabb;
 use crate::accel::layout::{
@@ -42,7 +42,8 @@ use crate::accel::layout::{
     SHADOW_CULL_CELLS, SHADOW_LIST_CONVEX, SHADOW_LIST_MAX, SHADOW_LIST_WALK, SHADOW_LIST_WORDS,
     SHAPE_BOX, SHAPE_CSG, SHAPE_DISK, SHAPE_MESH, SHAPE_QUAD, SHAPE_SPHERE,
 };
-use crate::accel::SceneAccel;
+use crate::accel::screen_tiles::{convex_hull, hull_vertices};
+use crate::accel::{world_sphere, SceneAccel};
 use crate::scene::Light;
 
 /// Relative margin of the plane test: a sum of four f32 products is within
@@ -192,8 +193,14 @@ pub fn build(accel: &SceneAccel, lights: &[Light], lists: bool) -> ShadowCull {
             out.lights[i] = cull;
         }
     }
-    out.sun = the_sun(lights)
-        .and_then(|(i, to_light)| CulledRegions::new(&out.lights[i], &out.cells, to_light));
+    out.sun = the_sun(lights).and_then(|(i, to_light)| {
+        let record = &out.lights[i];
+        let u = glam::Vec4::from_array(record.u).xyz();
+        let v = glam::Vec4::from_array(record.v).xyz();
+        let pad = f64::from(grid_pad(&boxes));
+        let shades = shades(accel, &boxes, to_light, (u, v), pad);
+        CulledRegions::new(record, &out.cells, to_light, shades, pad)
+    });
     out
 }
 
@@ -415,6 +422,16 @@ fn footprint(b: &Occluder, u: Vec3, v: Vec3, pad: f32) -> Footprint {
     }
 }
 
+/// The grid's margin across the light for `boxes` (their extent's size
+/// and coordinates); not finite where they are not.
+fn grid_pad(boxes: &[Occluder]) -> f32 {
+    let all = boxes.iter().fold(Aabb::EMPTY, |a, b| a.grow(b.bounds));
+    if !(all.min.is_finite() && all.max.is_finite()) {
+        return f32::INFINITY;
+    }
+    1e-4 * (all.max - all.min).length() + 1e-5 * all.min.abs().max(all.max.abs()).max_element()
+}
+
 /// The grid of one directional light (`to_light`: unit, towards the
 /// light) over `boxes`, written to `cells`, with the margin its
 /// footprints were grown by; None where culling is off (a box that is not
@@ -431,12 +448,10 @@ fn directional(
     // The margin covers a ray drifting off its projection over the scene
     // (l is only nearly perpendicular to u and v in f32) and the rounding
     // of the kernel's projection: both far below 1e-4 of the scene's size.
-    let all = boxes.iter().fold(Aabb::EMPTY, |a, b| a.grow(b.bounds));
-    if !(all.min.is_finite() && all.max.is_finite()) {
+    let pad = grid_pad(boxes);
+    if !pad.is_finite() {
         return None;
     }
-    let pad =
-        1e-4 * (all.max - all.min).length() + 1e-5 * all.min.abs().max(all.max.abs()).max_element();
     // Each occluder's footprint across the light. A static mesh within
     // the budget: one rectangle per triangle (a ray meets a triangle only
     // where it starts inside the triangle's projection).
@@ -772,10 +787,108 @@ fn cull_record(u: Vec3, v: Vec3, lo: Vec2, per_unit: f32, dims: [u32; 2]) -> Gpu
     }
 }
 
-/// Where a light's shadow rays are culled over whole regions of
+/// The most occluders whose shadows [`CulledRegions`] tests one by one
+/// (more, and it tests the grid's cells alone).
+const MAX_SHADES: usize = 32;
+
+/// One occluder's shadow across a directional light, for
+/// [`CulledRegions::all_culled`]: the convex hull of its projection
+/// across the light (the points, and the edges as outward unit normals n
+/// and offsets c, n . q <= c inside, grown by the grid's margin), and how
+/// far it reaches towards the light (the largest p . to_light of its
+/// points).
+#[derive(Debug, Clone, PartialEq)]
+struct Shade {
+    points: Vec<DVec2>,
+    edges: Vec<(DVec2, f64)>,
+    top: f64,
+    /// The grown hull's bounding rectangle, for a quick first test.
+    lo: DVec2,
+    hi: DVec2,
+}
+
+/// The shadows of `occluders` (instances of `accel`) across `to_light`
+/// (axes `u`, `v`): points holding each one, projected (a static sphere
+/// or CSG solid: the octagon around its bounding sphere's disc; a static
+/// box: its corners; a static mesh within the footprint budget: its
+/// triangles' corners; anything else: its world box's corners, over the
+/// shutter); each hull grown by `pad`. `None` past [`MAX_SHADES`].
+fn shades(
+    accel: &SceneAccel,
+    occluders: &[Occluder],
+    to_light: Vec3,
+    (u, v): (Vec3, Vec3),
+    pad: f64,
+) -> Option<Vec<Shade>> {
+    if occluders.len() > MAX_SHADES {
+        return None;
+    }
+    let (u, v, l) = (u.as_dvec3(), v.as_dvec3(), to_light.as_dvec3());
+    let shade = |b: &Occluder| {
+        let k = b.instance as usize;
+        let (world_from_object, _, shape) = accel.instances[k];
+        let shape = accel.shapes[shape as usize];
+        let mut world: Vec<DVec3> = Vec::new();
+        let mut disc = None;
+        if accel.moving[k] {
+            world.extend(b.bounds.corners().map(|c| c.as_dvec3()));
+        } else if let Some(sphere) = (world_sphere(&shape, world_from_object))
+            // A sphere stretched too far for the kernel's margin has none
+            // (bounding_sphere), as in the occluder lists.
+            .filter(|_| shape.kind != SHAPE_SPHERE || bounding_sphere(accel, k).w > 0.0)
+        {
+            disc = Some((sphere.xyz().as_dvec3(), f64::from(sphere.w)));
+        } else if shape.kind == SHAPE_BOX {
+            let h = Vec3::from_slice(&shape.params[..3]);
+            let corners = Aabb { min: -h, max: h }.corners();
+            world.extend(corners.map(|c| world_from_object.transform_point3(c).as_dvec3()));
+        } else if !b.triangles.is_empty() {
+            world.extend((b.triangles.iter()).flat_map(|(_, t)| t.map(|p| p.as_dvec3())));
+        } else {
+            world.extend(b.bounds.corners().map(|c| c.as_dvec3()));
+        }
+        let mut points: Vec<DVec2> = world
+            .iter()
+            .map(|p| DVec2::new(u.dot(*p), v.dot(*p)))
+            .collect();
+        let mut top = world
+            .iter()
+            .map(|p| p.dot(l))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if let Some((c, r)) = disc {
+            // The octagon around the disc: corners at r / cos 22.5 degrees.
+            let centre = DVec2::new(u.dot(c), v.dot(c));
+            let reach = r / std::f64::consts::FRAC_PI_8.cos();
+            points.extend((0..8).map(|i| {
+                let a = f64::from(i) * std::f64::consts::FRAC_PI_4;
+                centre + reach * DVec2::new(a.cos(), a.sin())
+            }));
+            top = c.dot(l) + r;
+        }
+        // Its hull's corners stand for it: a mesh has thousands of points.
+        let points = hull_vertices(&mut points);
+        let edges = convex_hull(&mut points.clone())
+            .into_iter()
+            .map(|(n, c)| (n, c + pad))
+            .collect();
+        let lo = points.iter().fold(DVec2::INFINITY, |a, p| a.min(*p)) - pad;
+        let hi = points.iter().fold(DVec2::NEG_INFINITY, |a, p| a.max(*p)) + pad;
+        Shade {
+            points,
+            edges,
+            top,
+            lo,
+            hi,
+        }
+    };
+    Some(occluders.iter().map(shade).collect())
+}
+
+/// Where a light's shadow rays meet nothing over whole regions of
 /// receivers: the question the CPU asks for the trace pass's tiles
-/// (`TILE_UNSHADOWED`), answered from the same data as the kernel's
-/// `shadow_query`, with margins for the kernel's rounding.
+/// (`TILE_UNSHADOWED`), answered from the kernel's `shadow_query` data
+/// (its static planes and grid) and from the occluders' shadows, with
+/// margins for the kernel's rounding.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CulledRegions {
     cull: GpuShadowCull,
@@ -783,13 +896,24 @@ pub struct CulledRegions {
     /// Per grid cell (x, y), the number of non-empty cells at x' < x and
     /// y' < y: a summed-area table of (dims.x + 1) x (dims.y + 1).
     occupied: Vec<u32>,
+    /// Every occluder of the grid's shadow, where there are few enough.
+    shades: Option<Vec<Shade>>,
+    /// The grid's margin across the light (world units).
+    pad: f64,
 }
 
 impl CulledRegions {
     /// For the light whose cull record is `cull` (its cells in `cells`),
-    /// whose shadow rays all run along `to_light` (a directional light's);
-    /// `None` where the light's rays are not culled (`enabled` 0).
-    pub fn new(cull: &GpuShadowCull, cells: &[u32], to_light: Vec3) -> Option<Self> {
+    /// whose shadow rays all run along `to_light` (a directional light's),
+    /// with its occluders' `shades` and margin `pad`; `None` where the
+    /// light's rays are not culled (`enabled` 0).
+    fn new(
+        cull: &GpuShadowCull,
+        cells: &[u32],
+        to_light: Vec3,
+        shades: Option<Vec<Shade>>,
+        pad: f64,
+    ) -> Option<Self> {
         if cull.enabled == 0 {
             return None;
         }
@@ -806,16 +930,20 @@ impl CulledRegions {
             cull: *cull,
             to_light,
             occupied,
+            shades,
+            pad,
         })
     }
 
-    /// Whether `shadow_query` culls (answers `SHADOW_SKIP` for) the shadow
-    /// ray from every point of the convex hull of `points`: every static
-    /// plane lies behind all of them, by twice the kernel's margin (its
-    /// side is linear over the hull, its margin convex, so the corners
-    /// bound both), and every grid cell that the hull's image on the grid
-    /// may touch, grown by a cell for the kernel's rounding, is empty or
-    /// off the grid. False where unsure.
+    /// Whether the shadow ray from every point of the convex hull of
+    /// `points` meets nothing: every static plane lies behind all of them,
+    /// by twice the kernel's margin (its side is linear over the hull, its
+    /// margin convex, so the corners bound both), and either every grid
+    /// cell that the hull's image on the grid may touch, grown by a cell
+    /// for the kernel's rounding, is empty or off the grid (then
+    /// `shadow_query` culls every such ray: answers `SHADOW_SKIP`), or
+    /// every occluder's shadow misses the hull's ([`Self::shades_miss`]).
+    /// False where unsure.
     pub fn all_culled(&self, points: &[Vec3]) -> bool {
         let cull = &self.cull;
         for row in &cull.planes[..(cull.plane_count as usize).min(cull.planes.len())] {
@@ -859,7 +987,54 @@ impl CulledRegions {
             (hi.y.min(dims.y - 1.0) as usize) + 1,
         );
         let at = |x: usize, y: usize| self.occupied[y * (w + 1) + x];
-        at(x1, y1) + at(x0, y0) == at(x0, y1) + at(x1, y0)
+        at(x1, y1) + at(x0, y0) == at(x0, y1) + at(x1, y0) || self.shades_miss(points)
+    }
+
+    /// Whether no line from a point of the convex hull of `points` along
+    /// the light meets an occluder's shadow towards the light: each
+    /// occluder lies wholly behind every point (farther from the light,
+    /// by the margin), or an edge of its shadow's hull or of the points'
+    /// projected hull separates the two (the separating axis test, over
+    /// the edges alone: a pair it cannot separate is not proven). The
+    /// margin covers the kernel's rounding of its ray as the grid's does.
+    fn shades_miss(&self, points: &[Vec3]) -> bool {
+        let Some(shades) = &self.shades else {
+            return false;
+        };
+        let u = glam::Vec4::from_array(self.cull.u).xyz().as_dvec3();
+        let v = glam::Vec4::from_array(self.cull.v).xyz().as_dvec3();
+        let l = self.to_light.as_dvec3();
+        let mut across = [DVec2::ZERO; 8];
+        let Some(across) = across.get_mut(..points.len()) else {
+            return false;
+        };
+        for (q, p) in across.iter_mut().zip(points) {
+            *q = DVec2::new(u.dot(p.as_dvec3()), v.dot(p.as_dvec3()));
+        }
+        let nearest = (points.iter()).fold(f64::INFINITY, |m, p| m.min(p.as_dvec3().dot(l)));
+        // Beyond the grid's margin, one for the points' own coordinates: a
+        // receiver far out on a wide floor casts its ray far across the
+        // occluders, whose tests round relative to that distance.
+        let far = (points.iter()).fold(0.0f64, |m, p| m.max(f64::from(p.abs().max_element())));
+        let extra = 1e-4 * far;
+        let lo = across.iter().fold(DVec2::INFINITY, |a, q| a.min(*q)) - extra;
+        let hi = across.iter().fold(DVec2::NEG_INFINITY, |a, q| a.max(*q)) + extra;
+        let beyond =
+            |(n, c): &(DVec2, f64), qs: &[DVec2], pad: f64| qs.iter().all(|q| n.dot(*q) > c + pad);
+        // The points' hull, made only for an occluder the cheap tests keep.
+        let mut edges = None;
+        shades.iter().all(|s| {
+            if s.top + self.pad + extra < nearest
+                || s.lo.cmpgt(hi).any()
+                || s.hi.cmplt(lo).any()
+                || s.edges.iter().any(|e| beyond(e, across, extra))
+            {
+                return true;
+            }
+            let edges = edges.get_or_insert_with(|| convex_hull(&mut across.to_vec()));
+            let pad = self.pad + extra;
+            !s.points.is_empty() && edges.iter().any(|e| beyond(e, &s.points, pad))
+        })
     }
 }
 
