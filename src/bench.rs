@@ -1056,7 +1056,7 @@ pub fn run(gpu: &Gpu, args: &BenchArgs) -> anyhow::Result<()> {
         if !dir.is_dir() {
             anyhow::bail!("--shaders {}: not a folder", dir.display());
         }
-        gpu.set_shader_overrides(Some(ShaderOverrides::read_dir(dir)?));
+        gpu.set_shader_overrides(Some(ShaderOverrides::read_given_dir(dir, "--shaders")?));
     }
     if let Some(dir) = &args.compare_shaders {
         if !dir.is_dir() {

@@ -133,6 +133,12 @@ fn counts_past_their_bounds_are_refused_naming_the_bound() {
             &["bench", "raster", "--compare-shaders", "."],
             "suites `scene`",
         ),
+        // A folder holding no shader file: an error, not the built-in
+        // shaders timed under another name.
+        case(
+            &["bench", "floor", "--shaders", "."],
+            "--shaders .: holds no shader file",
+        ),
     ];
     if cfg!(feature = "app") {
         // Refused before any window is opened.

@@ -69,7 +69,7 @@ pub fn compare_shaders(
     dir: &Path,
     r: &Report,
 ) -> anyhow::Result<()> {
-    let b_shaders = ShaderOverrides::read_dir(dir)?;
+    let b_shaders = ShaderOverrides::read_given_dir(dir, "--compare-shaders")?;
     // Passes read their shader files when they are created.
     let mut a = TimedRenderer::new(gpu, scene.clone(), args.mode, args)?;
     let a_shaders = gpu.shader_overrides();
@@ -129,7 +129,7 @@ pub fn compare_ray_shaders(
     dir: &Path,
     r: &Report,
 ) -> anyhow::Result<()> {
-    let b_shaders = ShaderOverrides::read_dir(dir)?;
+    let b_shaders = ShaderOverrides::read_given_dir(dir, "--compare-shaders")?;
     let a = RayBatch::new(gpu)?;
     let a_shaders = gpu.shader_overrides();
     gpu.set_shader_overrides(Some(b_shaders));

@@ -310,6 +310,22 @@ impl ShaderOverrides {
         })
     }
 
+    /// [`ShaderOverrides::read_dir`] for a folder given to replace the
+    /// built-in shaders: one holding none of them (a mistyped folder, or
+    /// the project's root instead of its `shaders/`) is an error, not a
+    /// silent run of the built-in ones. `flag` names the option.
+    pub fn read_given_dir(dir: &std::path::Path, flag: &str) -> Result<ShaderOverrides, GpuError> {
+        let read = ShaderOverrides::read_dir(dir)?;
+        if read.files.is_empty() {
+            return Err(GpuError::Shader(format!(
+                "{flag} {}: holds no shader file (each is read by its path under shaders/, e.g. {})",
+                dir.display(),
+                dir.join("trace.wgsl").display()
+            )));
+        }
+        Ok(read)
+    }
+
     /// The text of shader file `name`: from disk when read, else embedded.
     pub fn source_of(&self, name: &str) -> Option<&str> {
         self.files
