@@ -1000,10 +1000,12 @@ fn tiles_claimed_smooth_hold_only_the_smooth_inside_of_one_plane() {
 /// (the CPU twin of the kernel's closest hit, over every instance). The
 /// proof is not empty, some of it rests on the occluders' shadows (rays
 /// the query would cast; in the first scene, whose occluders are of every
-/// kind), and it is not the whole floor: some floor
-/// pixels outside the proven tiles are in the solids' shadows, so a proof
-/// that ignored the grid's cells and the occluders would fail here. The
-/// test scene's level floor, then a tilted quad under a few solids.
+/// kind, and on a wide floor under a low sun), and it is not the whole
+/// floor: some floor pixels outside the proven tiles are in the solids'
+/// shadows, so a proof that ignored the grid's cells and the occluders
+/// would fail here. The test scene's level floor, a tilted quad under a
+/// few solids, and long shadows of a stretched sphere, a cylinder and a
+/// cone.
 #[test]
 fn unshadowed_tiles_cast_only_culled_shadow_rays() {
     let (scene, accel) = scene();
@@ -1032,6 +1034,33 @@ fn unshadowed_tiles_cast_only_culled_shadow_rays() {
     let (proven, _, shadowed) = check_unshadowed_tiles(&scene, &accel);
     assert!(proven > 4 * 1000, "tilted: {proven} floor pixels proven");
     assert!(shadowed > 200, "tilted: {shadowed} floor pixels shadowed");
+    // A wide floor under a low sun, with long shadows of a stretched
+    // sphere, a cylinder and a cone (whose shades carry the widest
+    // slack), seen from far off.
+    let ron = r#"(version: 1,
+        camera: (eye: (0.0, 5.0, 14.0), target: (0.0, 0.0, -1.0), up: (0.0, 1.0, 0.0), fov_y_deg: 50.0, width: 320, height: 200),
+        lights: [Directional(direction: (1.0, -0.3, 0.4), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+        materials: { "m": (base_color: (0.8, 0.8, 0.8), model: BlinnPhong) },
+        shapes: {
+            "floor": Plane(Quad(half_size: (60.0, 60.0))),
+            "ball": Sphere(radius: 0.5),
+            "post": Cylinder(radius: 0.1, height: 3.0),
+            "cone": Cone(radius: 0.6, height: 1.5),
+        },
+        instances: [
+            (shape: "floor", material: "m"),
+            (shape: "ball", material: "m", transform: (translate: (-3.0, 0.6, 2.0), scale: (4.0, 1.0, 1.0))),
+            (shape: "post", material: "m", transform: (translate: (2.0, 0.0, -1.0))),
+            (shape: "cone", material: "m", transform: (translate: (-1.0, 0.0, -6.0))),
+        ],
+    )"#;
+    let scene = Scene::from_ron_str(ron, "wide.ron", std::path::Path::new(".")).unwrap();
+    let order: Vec<usize> = (0..scene.instances.len()).collect();
+    let accel = SceneAccel::build(&scene, &order).unwrap();
+    let (proven, by_shades, shadowed) = check_unshadowed_tiles(&scene, &accel);
+    assert!(proven > 4 * 5000, "wide: {proven} floor pixels proven");
+    assert!(by_shades > 0, "wide: no pixel proven past the grid's cells");
+    assert!(shadowed > 500, "wide: {shadowed} floor pixels shadowed");
 }
 
 /// [`unshadowed_tiles_cast_only_culled_shadow_rays`] for instance 0 of

@@ -91,8 +91,8 @@ pub const TILE_GBUFFER_SKIPS: u32 = 4;
 /// Bit of a tile's word after the records: every primary hit of the tile
 /// is on one static quad or disk (the record lists it alone, and no
 /// rasterized mesh may show), and the shadow ray of each such hit towards
-/// the one light that casts shadows is culled by `shadow_query` (the CPU
-/// proves it for the region the tile's rays meet,
+/// the one light that casts shadows is culled by `shadow_query` or meets
+/// nothing (the CPU proves it for the region the tile's rays meet,
 /// [`crate::accel::shadow_cull::CulledRegions`]): the trace pass casts no
 /// shadow ray from the tile's primary hits and asks nothing.
 pub const TILE_UNSHADOWED: u32 = 8;

@@ -805,6 +805,49 @@ struct Shade {
     /// The grown hull's bounding rectangle, for a quick first test.
     lo: DVec2,
     hi: DVec2,
+    /// How far past the occluder the kernel's test may report a hit.
+    slack: Slack,
+}
+
+/// How far past an occluder's surface the kernel's f32 test of it may
+/// report a hit, beyond the margins every shade has (the grid's, and 1e-4
+/// of the receiver's coordinates, which cover a box's slab test and a
+/// triangle's edge tests).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Slack {
+    /// A box's or a mesh's: those margins.
+    None,
+    /// A sphere's or a CSG solid's (whose hits its bounding sphere's test
+    /// gates): the kernel's own `may_meet_sphere` margin for this world
+    /// sphere (centre, radius), 1e-5 of the sizes involved and 6.4e-5
+    /// D^2 / R, D the receiver's distance from the centre: b^2 - ac near
+    /// a tangent may report a hit about 2e-7 D^2 / R beyond the sphere,
+    /// 16 times that stretched 4x (the most a sphere given a disc may be).
+    Sphere(DVec3, f64),
+    /// Anything else (cylinders, cones and stretched spheres, whose
+    /// quadratics round by their own radii; moving instances): 1e-3 of
+    /// the receiver's distance from this point (its world box's centre),
+    /// a hit up to D / r = 8,000 times f32's epsilon beyond a surface of
+    /// radius r.
+    Far(DVec3),
+}
+
+impl Slack {
+    /// The slack for receivers at `points` (world).
+    fn at(self, points: &[Vec3]) -> f64 {
+        let farthest =
+            |c: DVec3| (points.iter()).fold(0.0f64, |m, p| m.max(p.as_dvec3().distance(c)));
+        match self {
+            Slack::None => 0.0,
+            Slack::Sphere(c, r) => {
+                let sizes =
+                    (points.iter()).fold(0.0f64, |m, p| m.max(p.as_dvec3().abs().element_sum()));
+                let d = farthest(c);
+                1e-5 * (r + c.abs().element_sum() + sizes) + 6.4e-5 * d * d / r
+            }
+            Slack::Far(c) => 1e-3 * farthest(c),
+        }
+    }
 }
 
 /// The shadows of `occluders` (instances of `accel`) across `to_light`
@@ -830,14 +873,18 @@ fn shades(
         let shape = accel.shapes[shape as usize];
         let mut world: Vec<DVec3> = Vec::new();
         let mut disc = None;
+        let mut slack = Slack::None;
         if accel.moving[k] {
             world.extend(b.bounds.corners().map(|c| c.as_dvec3()));
+            slack = Slack::Far(b.bounds.centre().as_dvec3());
         } else if let Some(sphere) = (world_sphere(&shape, world_from_object))
             // A sphere stretched too far for the kernel's margin has none
             // (bounding_sphere), as in the occluder lists.
             .filter(|_| shape.kind != SHAPE_SPHERE || bounding_sphere(accel, k).w > 0.0)
         {
-            disc = Some((sphere.xyz().as_dvec3(), f64::from(sphere.w)));
+            let (c, r) = (sphere.xyz().as_dvec3(), f64::from(sphere.w));
+            disc = Some((c, r));
+            slack = Slack::Sphere(c, r);
         } else if shape.kind == SHAPE_BOX {
             let h = Vec3::from_slice(&shape.params[..3]);
             let corners = Aabb { min: -h, max: h }.corners();
@@ -846,6 +893,9 @@ fn shades(
             world.extend((b.triangles.iter()).flat_map(|(_, t)| t.map(|p| p.as_dvec3())));
         } else {
             world.extend(b.bounds.corners().map(|c| c.as_dvec3()));
+            if shape.kind != SHAPE_MESH {
+                slack = Slack::Far(b.bounds.centre().as_dvec3());
+            }
         }
         let mut points: Vec<DVec2> = world
             .iter()
@@ -879,6 +929,7 @@ fn shades(
             top,
             lo,
             hi,
+            slack,
         }
     };
     Some(occluders.iter().map(shade).collect())
@@ -996,7 +1047,8 @@ impl CulledRegions {
     /// by the margin), or an edge of its shadow's hull or of the points'
     /// projected hull separates the two (the separating axis test, over
     /// the edges alone: a pair it cannot separate is not proven). The
-    /// margin covers the kernel's rounding of its ray as the grid's does.
+    /// margin covers the kernel's rounding of its ray as the grid's does,
+    /// and of its test of the occluder ([`Slack`]).
     fn shades_miss(&self, points: &[Vec3]) -> bool {
         let Some(shades) = &self.shades else {
             return false;
@@ -1024,16 +1076,20 @@ impl CulledRegions {
         // The points' hull, made only for an occluder the cheap tests keep.
         let mut edges = None;
         shades.iter().all(|s| {
-            if s.top + self.pad + extra < nearest
-                || s.lo.cmpgt(hi).any()
-                || s.hi.cmplt(lo).any()
-                || s.edges.iter().any(|e| beyond(e, across, extra))
+            if s.points.is_empty() {
+                return false;
+            }
+            let slack = s.slack.at(points);
+            if s.top + self.pad + extra + slack < nearest
+                || (s.lo - slack).cmpgt(hi).any()
+                || (s.hi + slack).cmplt(lo).any()
+                || s.edges.iter().any(|e| beyond(e, across, extra + slack))
             {
                 return true;
             }
             let edges = edges.get_or_insert_with(|| convex_hull(&mut across.to_vec()));
-            let pad = self.pad + extra;
-            !s.points.is_empty() && edges.iter().any(|e| beyond(e, &s.points, pad))
+            let pad = self.pad + extra + slack;
+            edges.iter().any(|e| beyond(e, &s.points, pad))
         })
     }
 }

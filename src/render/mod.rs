@@ -877,12 +877,13 @@ impl Renderer {
 
     /// Sets [`TILE_UNSHADOWED`] in the tiles' flag words (one per trace
     /// tile, their record summaries in place) where every primary hit is
-    /// on one static quad or disk whose shadow rays there are all culled,
+    /// on one static quad or disk whose shadow rays there meet nothing,
     /// for the sample whose projection is `clip_from_world`: where exactly
     /// one light casts shadows, a directional one with a cull grid (its
-    /// [`CulledRegions`], built with the cull data). The planes' regions are proven in
-    /// groups of 4 x 4 tiles, about 900 a 1280 x 720 sample, the first
-    /// [`UNSHADOWED_PLANES`] planes only.
+    /// [`crate::accel::shadow_cull::CulledRegions`], built with the cull
+    /// data). The planes' regions are proven in groups of 4 x 4 tiles,
+    /// about 900 a 1280 x 720 sample, the first [`UNSHADOWED_PLANES`]
+    /// planes only.
     fn flag_unshadowed(&self, flag_words: &mut [u32], clip_from_world: glam::Mat4) {
         let Some(regions) = &self.buffers.cull.sun else {
             return;
