@@ -38,7 +38,13 @@ fn scene() -> (Scene, SceneAccel) {
             (shape: "cow", material: "m", transform: (translate: (2.5, 0.74, -3.0))),
         ],
     )"#;
-    let scene = Scene::from_ron_str(ron, "test.ron", std::path::Path::new(".")).unwrap();
+    built(ron, "test.ron")
+}
+
+/// Scene `ron` (named `name`) and its acceleration data, instances in
+/// file order.
+fn built(ron: &str, name: &str) -> (Scene, SceneAccel) {
+    let scene = Scene::from_ron_str(ron, name, std::path::Path::new(".")).unwrap();
     let order: Vec<usize> = (0..scene.instances.len()).collect();
     let accel = SceneAccel::build(&scene, &order).unwrap();
     (scene, accel)
@@ -1028,9 +1034,7 @@ fn unshadowed_tiles_cast_only_culled_shadow_rays() {
             (shape: "crate", material: "m", transform: (translate: (1.2, 0.6, -0.8), rotate_deg: (0.0, 30.0, 0.0))),
         ],
     )"#;
-    let scene = Scene::from_ron_str(ron, "tilted.ron", std::path::Path::new(".")).unwrap();
-    let order: Vec<usize> = (0..scene.instances.len()).collect();
-    let accel = SceneAccel::build(&scene, &order).unwrap();
+    let (scene, accel) = built(ron, "tilted.ron");
     let (proven, _, shadowed) = check_unshadowed_tiles(&scene, &accel);
     assert!(proven > 4 * 1000, "tilted: {proven} floor pixels proven");
     assert!(shadowed > 200, "tilted: {shadowed} floor pixels shadowed");
@@ -1054,9 +1058,7 @@ fn unshadowed_tiles_cast_only_culled_shadow_rays() {
             (shape: "cone", material: "m", transform: (translate: (-1.0, 0.0, -6.0))),
         ],
     )"#;
-    let scene = Scene::from_ron_str(ron, "wide.ron", std::path::Path::new(".")).unwrap();
-    let order: Vec<usize> = (0..scene.instances.len()).collect();
-    let accel = SceneAccel::build(&scene, &order).unwrap();
+    let (scene, accel) = built(ron, "wide.ron");
     let (proven, by_shades, shadowed) = check_unshadowed_tiles(&scene, &accel);
     assert!(proven > 4 * 5000, "wide: {proven} floor pixels proven");
     assert!(by_shades > 0, "wide: no pixel proven past the grid's cells");
