@@ -535,7 +535,7 @@ fn trace_tile(tile: vec2<u32>, li: u32) {
     var raster_may_show = true;
     var accumulates = false;
     // Whether the tile's primary hits cast no shadow ray (TILE_UNSHADOWED:
-    // the CPU proved every one culled).
+    // the CPU proved every one culled or meeting nothing).
     var unshadowed = false;
     // Whether this pixel's normal, depth and id are stored: everywhere
     // unless the tile's word says no pass reads them this sample.

@@ -885,7 +885,7 @@ impl Renderer {
     /// about 900 a 1280 x 720 sample, the first [`UNSHADOWED_PLANES`]
     /// planes only.
     fn flag_unshadowed(&self, flag_words: &mut [u32], clip_from_world: glam::Mat4) {
-        let Some(regions) = &self.buffers.cull.sun else {
+        let Some(regions) = &self.buffers.sun else {
             return;
         };
         let epsilon = f64::from(self.ray_epsilon());

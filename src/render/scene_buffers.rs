@@ -175,9 +175,10 @@ pub struct SceneBuffers {
     /// rewritten when lights are edited.
     pub shadow_cull: wgpu::Buffer,
     pub shadow_cells: wgpu::Buffer,
-    /// What `shadow_cull` and `shadow_cells` hold, for the CPU's proofs
-    /// over the trace pass's tiles (`TILE_UNSHADOWED`).
-    pub cull: shadow_cull::ShadowCull,
+    /// The lone sun's culled regions (`shadow_cull::ShadowCull::sun`),
+    /// for the CPU's proofs over the trace pass's tiles
+    /// (`TILE_UNSHADOWED`); the cull data itself lives on the GPU only.
+    pub sun: Option<shadow_cull::CulledRegions>,
     /// Whether `shadow_cells` has room for occluder lists
     /// (`Gpu::shadow_lists` at upload), which light edits keep; they are
     /// filled only where the trace kernel reads them
@@ -547,7 +548,7 @@ impl SceneBuffers {
             .write_buffer(&self.shadow_cull, 0, bytemuck::cast_slice(&cull.lights));
         gpu.queue
             .write_buffer(&self.shadow_cells, 0, bytemuck::cast_slice(&cull.cells));
-        self.cull = cull;
+        self.sun = cull.sun;
     }
 
     /// Uploads `scene`. Sizes over the adapter's limits are refused with a
@@ -861,7 +862,7 @@ impl SceneBuffers {
                 triangle_maps,
                 shadow_cull,
                 shadow_cells,
-                cull,
+                sun: cull.sun,
                 shadow_lists,
                 tables,
                 selected,
