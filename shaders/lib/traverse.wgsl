@@ -16,6 +16,14 @@ const NO_HIT: u32 = 0xffffffffu;
 // False in pipelines for scenes without triangle meshes: the mesh traversal
 // is compiled out (the CPU driver runs a smaller kernel faster).
 override MESHES_ENABLED: bool = true;
+// Scenes of at most a few instances (src/render/scene_buffers.rs,
+// FLAT_TOP_LEVEL_MAX): their count, and trace_each tests instances 0 to
+// FLAT_TOP_LEVEL - 1 in turn instead of walking the top-level tree (0: it
+// walks). Every invocation then tests the same instance at the same time,
+// one shape's code at a time, where a walk's lanes reach different nodes
+// and instances; on the CPU driver that cost more than the few extra
+// tests up to about 8 instances (docs/performance.md).
+override FLAT_TOP_LEVEL: u32 = 0u;
 
 var<private> steps_left: u32;
 // The traversal stack: one per invocation, which its queries use in turn
@@ -238,6 +246,18 @@ fn finish_hit(top: TopHit) -> TraceHit {
 // mode rasterizes them).
 fn trace_each(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, skip_meshes: bool, any_hit: bool) -> TraceHit {
     var top = top_miss(t_max);
+    if FLAT_TOP_LEVEL > 0u {
+        // One step per instance tested, as the walk spends one per node.
+        for (var k = 0u; k < FLAT_TOP_LEVEL; k++) {
+            if !take_step() {
+                break;
+            }
+            if test_instance(k, o, d, t_min, skip_meshes, 0u, &top) && any_hit {
+                return top.best;
+            }
+        }
+        return finish_hit(top);
+    }
     let inv_d = 1.0 / d;
     var sp = 0u;
     var current = select(NO_HIT, 0u, box_entry(0u, o, inv_d, t_min, t_max, true) < 3.0e38);

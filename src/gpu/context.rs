@@ -230,6 +230,11 @@ pub struct Gpu {
     /// tile's instances (`accel::screen_tiles`); tests turn it off to
     /// check the tiles against the BVH walk.
     primary_tiles: AtomicBool,
+    /// Whether scenes uploaded from now on of at most
+    /// `FLAT_TOP_LEVEL_MAX` instances test them in turn instead of
+    /// walking the top-level tree; tests turn it off to check against the
+    /// walk.
+    flat_top_level: AtomicBool,
     /// How many workgroups the trace and accumulate kernels dispatch,
     /// each looping over tiles; 0: one per tile (`set_looping_groups`).
     looping_groups: AtomicU32,
@@ -404,6 +409,7 @@ impl Gpu {
             smooth_tiles: AtomicBool::new(true),
             shadow_lists: AtomicBool::new(true),
             primary_tiles: AtomicBool::new(true),
+            flat_top_level: AtomicBool::new(true),
             looping_groups,
             edge_tolerance: AtomicBool::new(edge_tolerance),
             barriers_loop,
@@ -497,6 +503,19 @@ impl Gpu {
 
     pub fn primary_tiles(&self) -> bool {
         self.primary_tiles.load(Ordering::Relaxed)
+    }
+
+    /// Whether scenes uploaded from now on of at most
+    /// [`crate::render::scene_buffers::FLAT_TOP_LEVEL_MAX`] instances have their rays
+    /// test every instance in turn instead of walking the top-level tree
+    /// (on by default; off: they walk, the same images, for tests and
+    /// benchmarks).
+    pub fn set_flat_top_level(&self, on: bool) {
+        self.flat_top_level.store(on, Ordering::Relaxed);
+    }
+
+    pub fn flat_top_level(&self) -> bool {
+        self.flat_top_level.load(Ordering::Relaxed)
     }
 
     /// How many workgroups the trace pass and the accumulate pass's two

@@ -203,6 +203,12 @@ pub struct SceneBuffers {
     /// walking the BVH: where [`Gpu::primary_tiles`] and the scene has at
     /// most `MAX_TILED_INSTANCES` instances.
     pub primary_tiles: bool,
+    /// The scene's instance count where rays that walk the top level test
+    /// every instance in turn instead (override `FLAT_TOP_LEVEL`,
+    /// lib/traverse.wgsl): where [`Gpu::flat_top_level`], the trace pass
+    /// walks each ray alone (not [`SceneBuffers::packet_trace`]) and the
+    /// scene has 1 to [`FLAT_TOP_LEVEL_MAX`] instances; else 0 (walk).
+    pub flat_top_level: u32,
     /// The uniform copies, in [`Table::ALL`]'s order; a table that does not
     /// fit binds a zero-filled buffer of the same size that nothing reads.
     uniform_copies: Vec<wgpu::Buffer>,
@@ -283,6 +289,26 @@ impl ShadingVariant {
             ("SHADING_MODELS", f64::from(self.models)),
             ("LIGHT_KINDS", f64::from(self.lights)),
         ]
+    }
+}
+
+/// Scenes with at most this many instances test each in turn, where a ray
+/// would walk the top-level tree (override `FLAT_TOP_LEVEL`,
+/// lib/traverse.wgsl). On lavapipe every lane then tests the same
+/// instance at once; trace pass against the walk, paired (hybrid): 3
+/// instances (csg_textbook) 0.967, 5 (mirrors) 0.953, 6
+/// (anchor_dof_motion) 0.935, 8 spheres 0.910, 12 0.989, 16 1.035, 32
+/// 1.291 (docs/performance-history.md, fortieth session).
+pub const FLAT_TOP_LEVEL_MAX: usize = 8;
+
+/// [`SceneBuffers::flat_top_level`] for a scene of `instances` instances.
+fn flat_top_level(gpu: &Gpu, instances: usize, packet_trace: bool) -> u32 {
+    let flat =
+        gpu.flat_top_level() && !packet_trace && (1..=FLAT_TOP_LEVEL_MAX).contains(&instances);
+    if flat {
+        instances as u32
+    } else {
+        0
     }
 }
 
@@ -869,6 +895,7 @@ impl SceneBuffers {
                 packet_trace,
                 primary_tiles: gpu.primary_tiles()
                     && accel.instances.len() <= crate::accel::screen_tiles::MAX_TILED_INSTANCES,
+                flat_top_level: flat_top_level(gpu, accel.instances.len(), packet_trace),
                 uniform_copies,
                 accel,
                 vertices: gpu

@@ -146,6 +146,10 @@ pub struct Variant {
     tables: UniformTables,
     /// The tables read by selection.
     selected: SelectedTables,
+    /// `FLAT_TOP_LEVEL`: the instance count where rays test every
+    /// instance instead of walking the top level
+    /// (`SceneBuffers::flat_top_level`), else 0.
+    flat_top_level: u32,
     /// The BVH walked as packets of 8 (`SceneBuffers::packet_trace`;
     /// `lib/trace_packet.wgsl`), else each ray on its own.
     packet: bool,
@@ -191,6 +195,7 @@ impl Variant {
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
             selected: buffers.selected,
+            flat_top_level: buffers.flat_top_level,
             packet: buffers.packet_trace,
             sizes: buffers.accel.sizes,
         }
@@ -204,6 +209,12 @@ impl Variant {
     /// Whether primary rays test their screen tile's instances.
     pub fn primary_tiles(self) -> bool {
         self.primary_tiles
+    }
+
+    /// The instance count where rays test every instance instead of
+    /// walking the top level, else 0.
+    pub fn flat_top_level(self) -> u32 {
+        self.flat_top_level
     }
 
     /// The override constants that select this variant in trace.wgsl.
@@ -226,6 +237,7 @@ impl Variant {
             ("GLOSSY_ENABLED", flag(self.glossy)),
             ("TEXTURES_ENABLED", flag(self.textures)),
             ("ANALYTIC_KINDS", f64::from(self.analytic_kinds)),
+            ("FLAT_TOP_LEVEL", f64::from(self.flat_top_level)),
         ];
         constants.extend(self.shading.constants());
         constants.extend(self.lights.constants());
