@@ -1421,6 +1421,50 @@ fn selected_tables_draw_what_indexed_reads_draw() {
     }
 }
 
+/// The samples of a still camera on a pinhole lens share one set of
+/// tiles, made for the unjittered camera (`Renderer::sample_tiles`), and
+/// every change makes them again: after an edit that widens the
+/// outlines to 3 px (the same tile size, but more tiles an outline
+/// reaches, so fewer the trace pass accumulates itself) and after a
+/// camera move, the kernel reads the tiles of the edited scene, which
+/// differ from the ones before.
+#[test]
+fn an_edit_remakes_the_shared_tiles() {
+    let gpu = gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let mut scene = Scene::load(&dir.join("default.ron")).unwrap();
+    let mode = RenderMode::Raytrace;
+    let settings = small_settings(mode);
+    let mut r = rendered(&gpu, scene.clone(), settings.clone());
+    let first = r.read_primary_tiles(&gpu).unwrap();
+    for k in 0..settings.spp {
+        assert!(first == r.primary_tiles(k, mode), "sample {k}'s tiles");
+    }
+    for m in &mut scene.materials {
+        if m.outline_width_px > 0.0 {
+            m.outline_width_px = 3.0;
+        }
+    }
+    r.update_scene(&gpu, scene.clone()).unwrap();
+    r.render_sample(&gpu).unwrap();
+    let widened = r.read_primary_tiles(&gpu).unwrap();
+    assert!(
+        widened == r.primary_tiles(0, mode),
+        "the edited scene's tiles"
+    );
+    assert!(widened != first, "the outlines' edit changed no tile");
+    let mut camera = scene.camera.clone();
+    camera.eye += Vec3::new(0.5, 0.2, 0.0);
+    r.set_camera(camera);
+    r.render_sample(&gpu).unwrap();
+    let moved = r.read_primary_tiles(&gpu).unwrap();
+    assert!(
+        moved == r.primary_tiles(0, mode),
+        "the moved camera's tiles"
+    );
+    assert!(moved != widened, "the camera's move changed no tile");
+}
+
 /// Scenes of at most `FLAT_TOP_LEVEL_MAX` instances test every instance
 /// in turn where a ray would walk the top-level tree (reflection and
 /// shadow rays, primary rays of untiled pixels): the same sums, bit for

@@ -7,7 +7,7 @@ use celray::accel::screen_tiles::{
 };
 use celray::accel::SceneAccel;
 use celray::gpu::twins::{PRIMARY_TILE_MAX, PRIMARY_TILE_WORDS};
-use celray::render::camera::{depth_range, sample_camera};
+use celray::render::camera::{depth_range, sample_camera, SampleCamera};
 use celray::scene::{Camera, Scene};
 use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
@@ -48,6 +48,26 @@ fn built(ron: &str, name: &str) -> (Scene, SceneAccel) {
     let order: Vec<usize> = (0..scene.instances.len()).collect();
     let accel = SceneAccel::build(&scene, &order).unwrap();
     (scene, accel)
+}
+
+/// The camera the renderer makes the tiles of a sample with sub-pixel
+/// `shift` and lens point `lens` for (`Renderer::tile_camera`): the
+/// sample's own, but on a pinhole lens without its shift, which every
+/// proof's pad (`TILE_PAD_PX`) covers. The tests below prove tiles with
+/// it and follow the shifted sample's rays.
+fn tile_camera(
+    camera: &Camera,
+    size: (u32, u32),
+    shift: Vec2,
+    lens: Vec2,
+    depth: (f32, f32),
+) -> SampleCamera {
+    let shift = if camera.aperture_radius == 0.0 {
+        Vec2::splat(0.5)
+    } else {
+        shift
+    };
+    sample_camera(camera, size, shift, lens, depth)
 }
 
 /// The ray of pixel (x, y) as the trace kernel makes it: the pixel
@@ -106,22 +126,26 @@ fn a_primary_ray_meets_only_its_tiles_instances_with_bounding_spheres() {
 /// `bounds`; returns how many entries the 8 px tiles' lists hold.
 fn primary_rays_meet_only_their_tiles_instances(bounds: &[impl ScreenBound]) -> usize {
     let (mut scene, accel) = scene();
-    scene.camera.aperture_radius = 0.15;
     scene.camera.focus_distance = Some(5.0);
     let size = (scene.camera.width, scene.camera.height);
     let (mut hits, mut listed_tiles, mut entries) = (0, 0, 0);
     let shifts = [(0.0, 0.0), (0.999, 0.999), (0.0, 0.999), (0.5, 0.5)];
-    // Tiles of one pixel hold the rectangles to the pixel.
-    for (i, &(sx, sy), tile) in shifts
+    let apertures = [0.15, 0.0];
+    // Tiles of one pixel hold the rectangles to the pixel; on a pinhole
+    // lens the tiles are the unshifted camera's.
+    for (i, &(sx, sy), tile, aperture) in shifts
         .iter()
         .enumerate()
         .flat_map(|(i, s)| [(i, s, 1), (i, s, 8)])
+        .flat_map(|(i, s, t)| apertures.map(|a| (i, s, t, a)))
     {
+        scene.camera.aperture_radius = aperture;
         let tiles_x = size.0.div_ceil(tile) as usize;
         let lens = Vec2::from_angle(i as f32 * 1.7) * (i % 2) as f32;
         let depth = depth_range(&scene.camera, scene.bounds());
         let cam = sample_camera(&scene.camera, size, Vec2::new(sx, sy), lens, depth);
-        let tiles = primary_tiles(bounds, |_| true, cam.clip_from_world, size, tile);
+        let made = tile_camera(&scene.camera, size, Vec2::new(sx, sy), lens, depth);
+        let tiles = primary_tiles(bounds, |_| true, made.clip_from_world, size, tile);
         for t in 0..tiles.len() / PRIMARY_TILE_WORDS as usize {
             if tile == 1 {
                 break;
@@ -150,8 +174,11 @@ fn primary_rays_meet_only_their_tiles_instances(bounds: &[impl ScreenBound]) -> 
             }
         }
     }
-    let tiles = shifts.len() * (size.0.div_ceil(8) * size.1.div_ceil(8)) as usize;
-    assert!(hits > 2 * shifts.len() * 203 * 117 / 2, "{hits} hits");
+    let tiles = apertures.len() * shifts.len() * (size.0.div_ceil(8) * size.1.div_ceil(8)) as usize;
+    assert!(
+        hits > apertures.len() * 2 * shifts.len() * 203 * 117 / 2,
+        "{hits} hits"
+    );
     assert!(
         listed_tiles * 10 > tiles * 9,
         "{listed_tiles} of {tiles} tiles listed"
@@ -231,7 +258,6 @@ fn a_source_pixel_flags_every_tile_within_its_reach_with_bounding_spheres() {
 fn source_pixels_flag_every_tile_within_their_reach(bounds: &[impl ScreenBound]) -> usize {
     let (mut scene, accel) = scene();
     let mut flagged = 0;
-    scene.camera.aperture_radius = 0.15;
     scene.camera.focus_distance = Some(5.0);
     let size = (scene.camera.width, scene.camera.height);
     let sources = [1u32, 2, 3, 7];
@@ -242,13 +268,19 @@ fn source_pixels_flag_every_tile_within_their_reach(bounds: &[impl ScreenBound])
         (Vec2::new(0.999, 0.5), Vec2::new(0.6, -0.8), 8, 3),
         (Vec2::new(0.5, 0.999), Vec2::new(-1.0, 0.0), 16, 7),
     ];
-    for (shift, lens, tile, reach) in cases {
+    // On a pinhole lens the flags are the unshifted camera's.
+    let apertures = [0.15, 0.0];
+    for ((shift, lens, tile, reach), aperture) in
+        cases.into_iter().flat_map(|c| apertures.map(|a| (c, a)))
+    {
+        scene.camera.aperture_radius = aperture;
         let depth = depth_range(&scene.camera, scene.bounds());
         let cam = sample_camera(&scene.camera, size, shift, lens, depth);
+        let made = tile_camera(&scene.camera, size, shift, lens, depth);
         let flags = reached_tiles(
             bounds,
             |k| sources.contains(&(k as u32)),
-            cam.clip_from_world,
+            made.clip_from_world,
             size,
             tile,
             reach,
@@ -602,12 +634,13 @@ fn check_smooth_claims(
         };
         let depth = depth.unwrap_or_else(|| depth_range(&scene.camera, scene.bounds()));
         let cam = sample_camera(&scene.camera, size, shift, lens, depth);
+        let made = tile_camera(&scene.camera, size, shift, lens, depth);
         let steps = SmoothSteps::for_radius(reach);
         let claimed = prove(
             &accel,
             target,
-            cam.forward,
-            cam.clip_from_world,
+            made.forward,
+            made.clip_from_world,
             size,
             tile,
             reach,
@@ -1093,10 +1126,11 @@ fn check_unshadowed_tiles(scene: &Scene, accel: &SceneAccel) -> (usize, usize, u
     for ((sx, sy), group) in offsets.into_iter().zip([4, 4, 1, 1]) {
         let depth = depth_range(&scene.camera, scene.bounds());
         let cam = sample_camera(&scene.camera, size, Vec2::new(sx, sy), Vec2::ZERO, depth);
+        let made = tile_camera(&scene.camera, size, Vec2::new(sx, sy), Vec2::ZERO, depth);
         let region = |points: &[Vec3]| regions.all_culled(points);
         let tiles = plane_region_tiles(
             floor,
-            cam.clip_from_world,
+            made.clip_from_world,
             size,
             8,
             group,

@@ -250,6 +250,28 @@ pub struct Renderer {
     /// no pass of that sample read them); [`Renderer::complete_gbuffer`]
     /// stores them before anything reads the G-buffer in full.
     partial_gbuffer: Option<FrameUniforms>,
+    /// What the tiles last uploaded were made for
+    /// ([`Renderer::sample_tiles`]); cleared by every change.
+    tile_cache: Option<TileCache>,
+}
+
+/// A sample's outline source tiles and primary tiles, where it uses them.
+struct SampleTiles {
+    sources: Option<Vec<u32>>,
+    tiles: Option<Vec<u32>>,
+}
+
+/// What a sample's outline source tiles and primary tiles were made for,
+/// and whether some tile skips its G-buffer stores.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TileCache {
+    clip_from_world: [f32; 16],
+    mode: RenderMode,
+    tile_px: u32,
+    outlines: bool,
+    reads_tiles: bool,
+    still: bool,
+    skips: bool,
 }
 
 /// The driver's structures for `scene` where `settings.accel` asks for them
@@ -323,12 +345,14 @@ impl Renderer {
             trace_may_accumulate: gpu.trace_accumulates(),
             smooth_tiles: gpu.smooth_tiles(),
             partial_gbuffer: None,
+            tile_cache: None,
         };
         renderer.bind(gpu)?;
         Ok(renderer)
     }
 
     fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
+        self.tile_cache = None;
         let raster = RasterPass::variant_of(&self.scene, &self.buffers, self.settings.mode);
         self.raster.prepare(gpu, &self.frame, raster);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
@@ -446,6 +470,7 @@ impl Renderer {
         self.temporal.last_view = None;
         self.temporal.moved = false;
         self.partial_gbuffer = None;
+        self.tile_cache = None;
     }
 
     /// Replaces the scene (uploading it again) and restarts accumulation.
@@ -453,6 +478,7 @@ impl Renderer {
         // Even where a step below fails: the last sample's G-buffer is
         // not completed against another scene.
         self.partial_gbuffer = None;
+        self.tile_cache = None;
         self.buffers = SceneBuffers::upload(gpu, &scene)?;
         (self.driver, self.accel_notice) =
             choose_driver(gpu, &scene, &self.buffers, &self.settings);
@@ -468,6 +494,7 @@ impl Renderer {
     /// otherwise everything is uploaded again as in [`Renderer::set_scene`].
     pub fn update_scene(&mut self, gpu: &Gpu, scene: Scene) -> Result<(), GpuError> {
         self.partial_gbuffer = None;
+        self.tile_cache = None;
         if !self.edits_in_place(&scene) {
             return self.set_scene(gpu, scene);
         }
@@ -590,6 +617,7 @@ impl Renderer {
     pub fn use_tiles_of_size(&mut self, width: u32, height: u32) {
         let widest = max_outline_px(&self.scene);
         self.tile_px = Some(self.accumulate.tile_px(widest, width, height));
+        self.tile_cache = None;
     }
 
     /// Draws with the pipelines of `keys` from now on (building them if
@@ -603,6 +631,7 @@ impl Renderer {
             ));
         }
         self.tile_px = Some(keys.accumulate.tile_px);
+        self.tile_cache = None;
         self.raster.prepare(gpu, &self.frame, keys.raster);
         self.trace.select_variant(gpu, keys.trace)
     }
@@ -616,6 +645,7 @@ impl Renderer {
             && camera.width == self.scene.camera.width
             && camera.height == self.scene.camera.height;
         self.scene.camera = camera;
+        self.tile_cache = None;
         if reprojects {
             self.samples = 0;
             self.temporal.moved = true;
@@ -627,6 +657,7 @@ impl Renderer {
     /// Applies new settings (new targets if the size changed) and restarts.
     pub fn set_settings(&mut self, gpu: &Gpu, settings: RenderSettings) -> Result<(), GpuError> {
         self.partial_gbuffer = None;
+        self.tile_cache = None;
         if (settings.width, settings.height) != (self.targets.width, self.targets.height) {
             self.targets = Targets::new(gpu, settings.width, settings.height)?;
         }
@@ -651,6 +682,27 @@ impl Renderer {
     /// its jittered and sheared projection.
     pub fn sample_camera(&self, k: u32) -> camera::SampleCamera {
         self.camera_for(&self.sample_schedule().sample(k))
+    }
+
+    /// The camera sample `k`'s tiles (`accel::screen_tiles`) are made
+    /// for: its own, without its sub-pixel jitter where the lens is a
+    /// pinhole, and at the shutter's opening where the camera does not
+    /// move (its position at other times differs only by rounding). Each
+    /// of the kernels' rays of a tile then lies within half a pixel of a
+    /// ray of the tile, which every tile proof covers: each grows its
+    /// tiles by `screen_tiles::TILE_PAD_PX` (2 px, for f32 rounding that a
+    /// millionth of a pixel would cover). So the samples of a still camera
+    /// share their tiles ([`Renderer::sample_tiles`]); with an aperture,
+    /// each sample's lens point moves the eye, and its tiles are its own.
+    fn tile_camera(&self, k: u32) -> camera::SampleCamera {
+        let mut smp = self.sample_schedule().sample(k);
+        if self.scene.camera.aperture_radius == 0.0 {
+            smp.pixel_offset = glam::Vec2::splat(0.5);
+        }
+        if !self.scene.camera.moves() {
+            smp.time = 0.0;
+        }
+        self.camera_for(&smp)
     }
 
     fn camera_for(&self, smp: &Sample) -> camera::SampleCamera {
@@ -789,7 +841,7 @@ impl Renderer {
     /// adds to the accumulator itself, and `TILE_GBUFFER_SKIPS` as on a
     /// still frame (a moving frame has none).
     pub fn primary_tiles(&self, k: u32, mode: RenderMode) -> Vec<u32> {
-        let camera = self.camera_for(&self.sample_schedule().sample(k));
+        let camera = self.tile_camera(k);
         let kernels = self.accumulate_kernels(&self.scene, &self.settings);
         let sources = kernels.outlines.then(|| {
             self.source_tiles_seen_by(
@@ -997,6 +1049,56 @@ impl Renderer {
         tiles
     }
 
+    /// Sample `k`'s outline source tiles (where `outlines`) and primary
+    /// tiles (where `reads_tiles`; `still`: no reproject pass reads the
+    /// whole G-buffer) for its tile camera ([`Renderer::tile_camera`]),
+    /// with what they are made for; `None` for the tiles where the last
+    /// sample's were made for the same (a still camera's samples, on a
+    /// pinhole lens): the passes hold them already. On lavapipe making
+    /// them took 1.3-2.7 ms of a csg_textbook sample's CPU time
+    /// (docs/performance-history.md, fortieth session).
+    #[allow(clippy::too_many_arguments)]
+    fn sample_tiles(
+        &self,
+        k: u32,
+        mode: RenderMode,
+        tile_px: u32,
+        outlines: bool,
+        reads_tiles: bool,
+        still: bool,
+    ) -> (TileCache, Option<SampleTiles>) {
+        let camera = self.tile_camera(k);
+        let mut made = TileCache {
+            clip_from_world: camera.clip_from_world.to_cols_array(),
+            mode,
+            tile_px,
+            outlines,
+            reads_tiles,
+            still,
+            skips: false,
+        };
+        if let Some(last) = self.tile_cache {
+            if last
+                == (TileCache {
+                    skips: last.skips,
+                    ..made
+                })
+            {
+                return (last, None);
+            }
+        }
+        let (clip_from_world, forward) = (camera.clip_from_world, camera.forward);
+        let sources =
+            outlines.then(|| self.source_tiles_seen_by(clip_from_world, forward, tile_px, mode));
+        let mut tiles = None;
+        if reads_tiles {
+            let (words, skips) =
+                self.tiles_seen_by(clip_from_world, mode, sources.as_deref(), tile_px, still);
+            (tiles, made.skips) = (Some(words), skips);
+        }
+        (made, Some(SampleTiles { sources, tiles }))
+    }
+
     /// Renders one more sample into the accumulator (one dispatch per pass,
     /// one sample per pixel: see the loop limit in STACK-NOTES.md), timing
     /// its passes when [`Renderer::enable_pass_timing`] was called and the
@@ -1026,30 +1128,26 @@ impl Renderer {
         let kernels = self.accumulate_kernels(&self.scene, &self.settings);
         self.accumulate.note_run(kernels);
         let (outlines, tile_px) = (kernels.outlines, kernels.tile_px);
-        // The sample's own projection, as the uniforms carry it.
-        let clip_from_world = glam::Mat4::from_cols_array_2d(&uniforms.clip_from_world);
-        let forward = glam::Vec3::from_slice(&uniforms.view_forward[..3]);
-        let sources =
-            outlines.then(|| self.source_tiles_seen_by(clip_from_world, forward, tile_px, mode));
         // Where the trace pass reads tiles, it adds the colour of those no
         // outline reaches to the accumulator itself (every tile without
         // outlines): the accumulate pass would only copy it there.
         let reads_tiles = mode != RenderMode::Raster && self.trace.reads_tiles();
         let trace_accumulates = reads_tiles && self.trace_may_accumulate;
-        let mut skips = false;
-        if reads_tiles {
-            // A moving frame's reproject pass reads the whole G-buffer.
-            let still = moving.is_none();
-            let tiles;
-            (tiles, skips) =
-                self.tiles_seen_by(clip_from_world, mode, sources.as_deref(), tile_px, still);
-            self.trace.write_tiles(gpu, tiles);
+        // A moving frame's reproject pass reads the whole G-buffer.
+        let still = moving.is_none();
+        let (made, fresh) = self.sample_tiles(k, mode, tile_px, outlines, reads_tiles, still);
+        if let Some(SampleTiles { sources, tiles }) = fresh {
+            if let Some(tiles) = tiles {
+                self.trace.write_tiles(gpu, tiles);
+            }
+            if let Some(sources) = sources {
+                self.accumulate.write_source_tiles(gpu, sources);
+            }
         }
+        self.tile_cache = Some(made);
+        let skips = made.skips;
         uniforms.trace_accumulates = u32::from(trace_accumulates);
         self.partial_gbuffer = skips.then_some(uniforms);
-        if let Some(sources) = sources {
-            self.accumulate.write_source_tiles(gpu, sources);
-        }
         if let Some((pass, prev)) = &moving {
             pass.write_uniforms(gpu, &self.reproject_uniforms(prev));
         }

@@ -210,6 +210,12 @@ impl Camera {
             ..self.clone()
         }
     }
+
+    /// Whether the eye or the target moves over the shutter.
+    pub fn moves(&self) -> bool {
+        self.eye_end.is_some_and(|e| e != self.eye)
+            || self.target_end.is_some_and(|t| t != self.target)
+    }
 }
 
 /// Shape of the camera aperture.
