@@ -251,26 +251,28 @@ pub struct Renderer {
     /// stores them before anything reads the G-buffer in full.
     partial_gbuffer: Option<FrameUniforms>,
     /// What the tiles last uploaded were made for
-    /// ([`Renderer::sample_tiles`]); cleared by every change.
-    tile_cache: Option<TileCache>,
+    /// ([`Renderer::sample_tiles`]), and whether some tile of them skips
+    /// its G-buffer stores; cleared by every change.
+    tile_cache: Option<(TileKey, bool)>,
 }
 
-/// A sample's outline source tiles and primary tiles, where it uses them.
-struct SampleTiles {
-    sources: Option<Vec<u32>>,
-    tiles: Option<Vec<u32>>,
-}
-
-/// What a sample's outline source tiles and primary tiles were made for,
-/// and whether some tile skips its G-buffer stores.
+/// What a sample's outline source tiles and primary tiles are made for:
+/// the same key, the same tiles.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct TileCache {
+struct TileKey {
     clip_from_world: [f32; 16],
     mode: RenderMode,
     tile_px: u32,
     outlines: bool,
     reads_tiles: bool,
     still: bool,
+}
+
+/// A sample's outline source tiles and primary tiles, where it uses them,
+/// and whether some tile skips its G-buffer stores.
+struct SampleTiles {
+    sources: Option<Vec<u32>>,
+    tiles: Option<Vec<u32>>,
     skips: bool,
 }
 
@@ -1054,7 +1056,7 @@ impl Renderer {
     /// whole G-buffer) for its tile camera ([`Renderer::tile_camera`]),
     /// with what they are made for; `None` for the tiles where the last
     /// sample's were made for the same (a still camera's samples, on a
-    /// pinhole lens): the passes hold them already. On lavapipe making
+    /// pinhole lens): the passes hold them already (`tile_cache`). On lavapipe making
     /// them took 1.3-2.7 ms of a csg_textbook sample's CPU time
     /// (docs/performance-history.md, fortieth session).
     #[allow(clippy::too_many_arguments)]
@@ -1066,37 +1068,35 @@ impl Renderer {
         outlines: bool,
         reads_tiles: bool,
         still: bool,
-    ) -> (TileCache, Option<SampleTiles>) {
+    ) -> (TileKey, Option<SampleTiles>) {
         let camera = self.tile_camera(k);
-        let mut made = TileCache {
+        let key = TileKey {
             clip_from_world: camera.clip_from_world.to_cols_array(),
             mode,
             tile_px,
             outlines,
             reads_tiles,
             still,
-            skips: false,
         };
-        if let Some(last) = self.tile_cache {
-            if last
-                == (TileCache {
-                    skips: last.skips,
-                    ..made
-                })
-            {
-                return (last, None);
-            }
+        if self.tile_cache.is_some_and(|(last, _)| last == key) {
+            return (key, None);
         }
         let (clip_from_world, forward) = (camera.clip_from_world, camera.forward);
         let sources =
             outlines.then(|| self.source_tiles_seen_by(clip_from_world, forward, tile_px, mode));
-        let mut tiles = None;
+        let (mut tiles, mut skips) = (None, false);
         if reads_tiles {
-            let (words, skips) =
+            let words;
+            (words, skips) =
                 self.tiles_seen_by(clip_from_world, mode, sources.as_deref(), tile_px, still);
-            (tiles, made.skips) = (Some(words), skips);
+            tiles = Some(words);
         }
-        (made, Some(SampleTiles { sources, tiles }))
+        let made = SampleTiles {
+            sources,
+            tiles,
+            skips,
+        };
+        (key, Some(made))
     }
 
     /// Renders one more sample into the accumulator (one dispatch per pass,
@@ -1135,17 +1135,22 @@ impl Renderer {
         let trace_accumulates = reads_tiles && self.trace_may_accumulate;
         // A moving frame's reproject pass reads the whole G-buffer.
         let still = moving.is_none();
-        let (made, fresh) = self.sample_tiles(k, mode, tile_px, outlines, reads_tiles, still);
-        if let Some(SampleTiles { sources, tiles }) = fresh {
+        let (key, made) = self.sample_tiles(k, mode, tile_px, outlines, reads_tiles, still);
+        if let Some(SampleTiles {
+            sources,
+            tiles,
+            skips,
+        }) = made
+        {
             if let Some(tiles) = tiles {
                 self.trace.write_tiles(gpu, tiles);
             }
             if let Some(sources) = sources {
                 self.accumulate.write_source_tiles(gpu, sources);
             }
+            self.tile_cache = Some((key, skips));
         }
-        self.tile_cache = Some(made);
-        let skips = made.skips;
+        let skips = self.tile_cache.is_some_and(|(_, skips)| skips);
         uniforms.trace_accumulates = u32::from(trace_accumulates);
         self.partial_gbuffer = skips.then_some(uniforms);
         if let Some((pass, prev)) = &moving {
