@@ -843,24 +843,10 @@ impl Renderer {
     /// adds to the accumulator itself, and `TILE_GBUFFER_SKIPS` as on a
     /// still frame (a moving frame has none).
     pub fn primary_tiles(&self, k: u32, mode: RenderMode) -> Vec<u32> {
-        let camera = self.tile_camera(k);
         let kernels = self.accumulate_kernels(&self.scene, &self.settings);
-        let sources = kernels.outlines.then(|| {
-            self.source_tiles_seen_by(
-                camera.clip_from_world,
-                camera.forward,
-                kernels.tile_px,
-                mode,
-            )
-        });
-        self.tiles_seen_by(
-            camera.clip_from_world,
-            mode,
-            sources.as_deref(),
-            kernels.tile_px,
-            true,
-        )
-        .0
+        let camera = self.tile_camera(k);
+        let made = self.make_tiles(&camera, mode, kernels.tile_px, kernels.outlines, true, true);
+        made.tiles.unwrap_or_default()
     }
 
     /// The primary-ray tiles of the sample whose projection is
@@ -1081,6 +1067,22 @@ impl Renderer {
         if self.tile_cache.is_some_and(|(last, _)| last == key) {
             return (key, None);
         }
+        let made = self.make_tiles(&camera, mode, tile_px, outlines, reads_tiles, still);
+        (key, Some(made))
+    }
+
+    /// The outline source tiles (where `outlines`) and primary tiles
+    /// (where `reads_tiles`) of a sample seen by `camera`
+    /// ([`Renderer::sample_tiles`] without its cache).
+    fn make_tiles(
+        &self,
+        camera: &camera::SampleCamera,
+        mode: RenderMode,
+        tile_px: u32,
+        outlines: bool,
+        reads_tiles: bool,
+        still: bool,
+    ) -> SampleTiles {
         let (clip_from_world, forward) = (camera.clip_from_world, camera.forward);
         let sources =
             outlines.then(|| self.source_tiles_seen_by(clip_from_world, forward, tile_px, mode));
@@ -1091,12 +1093,11 @@ impl Renderer {
                 self.tiles_seen_by(clip_from_world, mode, sources.as_deref(), tile_px, still);
             tiles = Some(words);
         }
-        let made = SampleTiles {
+        SampleTiles {
             sources,
             tiles,
             skips,
-        };
-        (key, Some(made))
+        }
     }
 
     /// Renders one more sample into the accumulator (one dispatch per pass,
