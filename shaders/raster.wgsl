@@ -147,6 +147,11 @@ fn flat_material(in: VsOut) -> GpuMaterial {
 }
 
 struct GBuffer {
+    // The shaded colour, and in alpha the id below as a float: a half holds
+    // every integer up to 2048 exactly, so raster mode drops the id target
+    // (one colour target fewer for the CPU driver's fragment path) and its
+    // readers take the id from here where the scene has at most
+    // MAX_IDS_IN_COLOR instances (src/render/raster.rs, ids_in_color).
     @location(0) color: vec4<f32>,
     // World-space unit normal and view depth.
     @location(1) normal_depth: vec4<f32>,
@@ -192,7 +197,7 @@ fn shade_fragment(m: GpuMaterial, world_pos: vec3<f32>, world_normal: vec3<f32>,
         c += shade_light(m, n, v, ls.to_light, ls.radiance);
     }
     var out: GBuffer;
-    out.color = vec4<f32>(c, 1.0);
+    out.color = vec4<f32>(c, f32(instance + 1u));
     out.normal_depth = nd;
     out.id = instance + 1u;
     return out;

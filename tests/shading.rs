@@ -1672,3 +1672,79 @@ fn a_stale_normal_depth_target_changes_no_pixel() {
         );
     }
 }
+
+/// Raster mode writes each fragment's id into the colour target's alpha, a
+/// half float, and draws no id target, where the scene has at most
+/// `MAX_IDS_IN_COLOR` (2,048) instances and temporal reprojection is off
+/// (`raster::ids_in_color`). A half holds every integer up to 2,048
+/// exactly (11 significant bits), so a grid of exactly 2,048 outlined
+/// spheres must give the same ids, outline marks, sums (bit for bit) and
+/// image as the same still frames drawn with the id target (temporal
+/// reprojection on: with the camera still no reproject pass runs), and
+/// the last sphere's id, 2,048, must be among them. Ids past 2,048 would
+/// round to even halves (2,049 reads 2,048), so one instance more takes
+/// the id target.
+#[test]
+fn raster_ids_in_the_colour_alpha_match_the_id_target() {
+    use celray::render::raster::{ids_in_color, MAX_IDS_IN_COLOR};
+    use celray::render::Temporal;
+
+    let gpu = gpu();
+    // 64 x 32 spheres 1 unit apart fill a 2:1 view 44 units away (half of
+    // the 32 rows over tan 20 degrees), about 8 px a sphere at 512 x 256.
+    let (cols, rows) = (64, 32);
+    assert_eq!(cols * rows, MAX_IDS_IN_COLOR);
+    let mut instances = String::new();
+    for j in 0..rows {
+        for i in 0..cols {
+            let (x, y) = (i as f32 - 31.5, j as f32 - 15.5);
+            let m = ["a", "b"][(i + j) % 2];
+            instances += &format!(
+                "(shape: \"ball\", material: \"{m}\", transform: (translate: ({x}, {y}, 0.0))),\n"
+            );
+        }
+    }
+    let grid = scene(&format!(
+        r#"(
+            version: 1,
+            camera: (eye: (0.0, 0.0, 44.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), fov_y_deg: 40.0, width: 512, height: 256),
+            lights: [Directional(direction: (-0.3, -0.5, -1.0), color: (1.0, 1.0, 1.0), intensity: 1.0)],
+            materials: {{
+                "a": (base_color: (0.8, 0.2, 0.1), model: Toon(bands: 3), outline_width_px: 1.5),
+                "b": (base_color: (0.1, 0.3, 0.8), model: BlinnPhong, outline_width_px: 1.5),
+            }},
+            shapes: {{ "ball": Sphere(radius: 0.4) }},
+            instances: [{instances}],
+        )"#
+    ));
+    let with = |temporal| RenderSettings {
+        spp: 2,
+        mode: RenderMode::Raster,
+        temporal,
+        ..pixel_centre_settings(&grid)
+    };
+    let (alpha, target) = (with(Temporal::Off), with(Temporal::Reproject));
+    assert!(ids_in_color(MAX_IDS_IN_COLOR, &alpha));
+    assert!(!ids_in_color(MAX_IDS_IN_COLOR + 1, &alpha));
+    assert!(!ids_in_color(MAX_IDS_IN_COLOR, &target));
+    let run = |settings: RenderSettings| {
+        let r = rendered(&gpu, grid.clone(), settings);
+        (
+            r.read_ids(&gpu).unwrap(),
+            r.read_outline_tile_words(&gpu).unwrap(),
+            accumulator_bits(&gpu, &r),
+            r.read_srgb8(&gpu).unwrap(),
+        )
+    };
+    let (a, b) = (run(alpha), run(target));
+    let shown: BTreeSet<u32> = b.0.iter().copied().collect();
+    assert!(
+        shown.contains(&(MAX_IDS_IN_COLOR as u32)) && shown.contains(&0),
+        "the id target shows the background and the last sphere"
+    );
+    assert_eq!(shown.len(), MAX_IDS_IN_COLOR + 1, "every sphere is seen");
+    assert!(a.0 == b.0, "the ids differ");
+    assert!(a.1 == b.1, "the outline marks differ");
+    assert!(a.2 == b.2, "the accumulator's sums differ");
+    assert!(a.3 == b.3, "the 8-bit images differ");
+}

@@ -12,6 +12,9 @@
 #include "lib/color.wgsl"
 
 override TRACED_GBUFFER: bool = false;
+// In raster mode, whether the ids are the colour texture's alpha (the raster
+// pass then has no id target: src/render/raster.rs, ids_in_color).
+override IDS_IN_COLOR: bool = false;
 
 @group(1) @binding(1) var color_tex: texture_2d<f32>;
 @group(1) @binding(2) var normal_depth_tex: texture_2d<f32>;
@@ -44,6 +47,9 @@ fn gbuffer_normal_depth(q: vec2<i32>) -> vec4<f32> {
 fn gbuffer_id(q: vec2<i32>) -> u32 {
     if TRACED_GBUFFER {
         return traced_id[traced_at(q)];
+    }
+    if IDS_IN_COLOR {
+        return u32(textureLoad(color_tex, q, 0).a);
     }
     return textureLoad(id_tex, q, 0).x;
 }

@@ -68,7 +68,9 @@ struct LightSample {
 fn sample_light(i: u32, light: GpuLight, p: vec3<f32>) -> LightSample {
     var s: LightSample;
     if is_directional(i, light) {
-        s.to_light = -normalize(light.position_or_direction.xyz);
+        // Unit length already (light_to_gpu normalizes it once): on the
+        // CPU driver a normalize here costs every pixel and light.
+        s.to_light = -light.position_or_direction.xyz;
         s.radiance = light.radiance.rgb;
         s.distance = 3.0e38;
     } else {

@@ -52,7 +52,8 @@ const RENDER_MODE_HYBRID: u32 = 1u;
 const RENDER_MODE_RAYTRACE: u32 = 2u;
 
 // A light: w of position_or_direction is 0 for a directional light (xyz is
-// the direction the light travels) and 1 for a point light (xyz = position).
+// the unit direction the light travels, normalized on the CPU) and 1 for a
+// point light (xyz = position).
 struct GpuLight {
     position_or_direction: vec4<f32>,
     // colour * intensity; w = 1 when the light casts shadows.

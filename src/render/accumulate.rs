@@ -105,10 +105,50 @@ pub fn accumulate_tile_px(
 pub struct Kernels {
     /// The tile edge ([`accumulate_tile_px`]).
     pub tile_px: u32,
-    /// Whether they read the traced G-buffer (else the raster one).
-    pub traced: bool,
+    /// Which G-buffer they read, and how.
+    pub gbuffer: GBufferKind,
     /// Whether the outline marks and search run (an outline of 1 px or more).
     pub outlines: bool,
+}
+
+/// The G-buffer the accumulate kernels and the outline marks read: the
+/// raster pass's textures, the same with the ids in the colour's alpha
+/// ([`crate::render::raster::ids_in_color`]), or the trace pass's buffers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum GBufferKind {
+    Raster,
+    RasterIdsInColor,
+    Traced,
+}
+
+impl GBufferKind {
+    const ALL: [GBufferKind; 3] = [
+        GBufferKind::Raster,
+        GBufferKind::RasterIdsInColor,
+        GBufferKind::Traced,
+    ];
+
+    /// The kernels' override constants `TRACED_GBUFFER` and `IDS_IN_COLOR`.
+    fn constants(self) -> [(&'static str, f64); 2] {
+        [
+            (
+                "TRACED_GBUFFER",
+                f64::from(u8::from(self == GBufferKind::Traced)),
+            ),
+            (
+                "IDS_IN_COLOR",
+                f64::from(u8::from(self == GBufferKind::RasterIdsInColor)),
+            ),
+        ]
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            GBufferKind::Raster => "raster",
+            GBufferKind::RasterIdsInColor => "raster, ids in colour",
+            GBufferKind::Traced => "traced",
+        }
+    }
 }
 
 /// What the pass binds for one tile edge ([`ACCUMULATE_TILES`]).
@@ -129,13 +169,13 @@ struct TileGroups {
 }
 
 pub struct AccumulatePass {
-    /// Per tile edge ([`ACCUMULATE_TILES`]), the `main` kernel reading the
-    /// raster G-buffer, then the traced one.
-    pipelines: [[wgpu::ComputePipeline; 2]; 2],
+    /// Per tile edge ([`ACCUMULATE_TILES`]), the `main` kernel reading
+    /// each [`GBufferKind`] in the order of `GBufferKind::ALL`.
+    pipelines: [[wgpu::ComputePipeline; 3]; 2],
     /// The `outlined` kernel, the same way.
-    outline_pipelines: [[wgpu::ComputePipeline; 2]; 2],
+    outline_pipelines: [[wgpu::ComputePipeline; 3]; 2],
     layout: wgpu::BindGroupLayout,
-    tiles_pipelines: [[wgpu::ComputePipeline; 2]; 2],
+    tiles_pipelines: [[wgpu::ComputePipeline; 3]; 2],
     tiles_layout: wgpu::BindGroupLayout,
     /// The scene's shared group.
     scene_group: Option<wgpu::BindGroup>,
@@ -201,17 +241,18 @@ impl AccumulatePass {
                         });
                 (layout, pipeline_layout)
             };
-            // Entry point `entry` of `module`, per tile edge, reading the
-            // raster G-buffer, then the traced one.
+            // Entry point `entry` of `module`, per tile edge, reading each
+            // kind of G-buffer.
             let pipelines =
                 |name: &str, pipeline_layout: &wgpu::PipelineLayout, module, entry: &str| {
                     ACCUMULATE_TILES.map(|tile| {
-                        [false, true].map(|traced| {
+                        GBufferKind::ALL.map(|kind| {
+                            let [traced, ids_in_color] = kind.constants();
                             gpu.device
                                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                                     label: Some(&format!(
                                         "{name} pipeline, {entry} ({tile} px tiles, {} G-buffer)",
-                                        if traced { "traced" } else { "raster" }
+                                        kind.name()
                                     )),
                                     layout: Some(pipeline_layout),
                                     module,
@@ -224,7 +265,8 @@ impl AccumulatePass {
                                     // no workgroup memory.)
                                     compilation_options: wgpu::PipelineCompilationOptions {
                                         constants: &[
-                                            ("TRACED_GBUFFER", f64::from(u8::from(traced))),
+                                            traced,
+                                            ids_in_color,
                                             ("ACCUMULATE_TILE", f64::from(tile)),
                                         ],
                                         zero_initialize_workgroup_memory: false,
@@ -473,7 +515,7 @@ impl AccumulatePass {
         &self,
         encoder: &mut wgpu::CommandEncoder,
         targets: &Targets,
-        traced: bool,
+        gbuffer: GBufferKind,
         tile_px: u32,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
@@ -487,7 +529,7 @@ impl AccumulatePass {
         encoder.clear_buffer(dispatch, MAIN_DISPATCH_OFFSET, Some(4));
         let (tiles_x, tiles_y) = tiles(targets, tile_px);
         let mut pass = self.begin(encoder, "outline tiles pass", timestamp_writes);
-        pass.set_pipeline(&self.tiles_pipelines[edge][usize::from(traced)]);
+        pass.set_pipeline(&self.tiles_pipelines[edge][gbuffer as usize]);
         pass.set_bind_group(PASS_GROUP, &groups[edge].tiles_group, &[]);
         pass.dispatch_workgroups((tiles_x * tiles_y).div_ceil(OUTLINE_TILES_WORKGROUP), 1, 1);
     }
@@ -515,13 +557,13 @@ impl AccumulatePass {
         };
         let Kernels {
             tile_px,
-            traced,
+            gbuffer,
             outlines,
         } = kernels;
         let edge = edge_index(tile_px);
         let (tiles_x, tiles_y) = tiles(targets, tile_px);
         let mut pass = self.begin(encoder, "accumulate pass", timestamp_writes);
-        pass.set_pipeline(&self.pipelines[edge][usize::from(traced)]);
+        pass.set_pipeline(&self.pipelines[edge][gbuffer as usize]);
         pass.set_bind_group(PASS_GROUP, &groups[edge].bind_group, &[]);
         if self.looping > 0 {
             // A few workgroups, each looping over its share of the tiles
@@ -534,7 +576,7 @@ impl AccumulatePass {
             pass.dispatch_workgroups(tiles_x, tiles_y, 1);
         }
         if outlines {
-            pass.set_pipeline(&self.outline_pipelines[edge][usize::from(traced)]);
+            pass.set_pipeline(&self.outline_pipelines[edge][gbuffer as usize]);
             if self.outlined_looping > 0 {
                 pass.dispatch_workgroups(self.outlined_looping, 1, 1);
             } else if groups[edge].listed {

@@ -355,7 +355,7 @@ impl Renderer {
 
     fn bind(&mut self, gpu: &Gpu) -> Result<(), GpuError> {
         self.tile_cache = None;
-        let raster = RasterPass::variant_of(&self.scene, &self.buffers, self.settings.mode);
+        let raster = RasterPass::variant_of(&self.scene, &self.buffers, &self.settings);
         self.raster.prepare(gpu, &self.frame, raster);
         let variant = trace::Variant::of(&self.scene, &self.buffers, &self.settings);
         let traced = self.trace.prepare(
@@ -573,7 +573,13 @@ impl Renderer {
             tile_px: self.tile_px.unwrap_or_else(|| {
                 (self.accumulate).tile_px(widest, settings.width, settings.height)
             }),
-            traced: settings.mode != RenderMode::Raster,
+            gbuffer: if settings.mode != RenderMode::Raster {
+                accumulate::GBufferKind::Traced
+            } else if raster::ids_in_color(scene.instances.len(), settings) {
+                accumulate::GBufferKind::RasterIdsInColor
+            } else {
+                accumulate::GBufferKind::Raster
+            },
             outlines: widest >= 1.0,
         }
     }
@@ -589,7 +595,7 @@ impl Renderer {
     fn keys_after_edit(&self, scene: &Scene) -> PipelineKeys {
         let want = trace::Variant::of(scene, &self.buffers, &self.settings);
         PipelineKeys {
-            raster: RasterPass::variant_of(scene, &self.buffers, self.settings.mode),
+            raster: RasterPass::variant_of(scene, &self.buffers, &self.settings),
             trace: self.trace.variant_for_edit(want),
             driver: self.trace.uses_driver(),
             reproject: self.settings.temporal != Temporal::Off,
@@ -604,6 +610,7 @@ impl Renderer {
         let raster = |s: &RenderSettings| s.mode == RenderMode::Raster;
         (settings.accel == self.settings.accel && raster(settings) == raster(&self.settings)).then(
             || PipelineKeys {
+                raster: RasterPass::variant_of(&self.scene, &self.buffers, settings),
                 trace: trace::Variant::of(&self.scene, &self.buffers, settings),
                 reproject: settings.temporal != Temporal::Off,
                 accumulate: self.accumulate_kernels(&self.scene, settings),
@@ -1217,7 +1224,7 @@ impl Renderer {
             self.accumulate.encode_tiles(
                 &mut encoder,
                 &self.targets,
-                traced,
+                kernels.gbuffer,
                 tile_px,
                 timer
                     .as_mut()
@@ -1440,7 +1447,17 @@ impl Renderer {
     /// (see [`SceneBuffers::instance_order`]), of the last sample (after a
     /// change, the texels that sample left unstored hold older values until
     /// the next one). For tests (picking is [`Renderer::pick`], on the CPU).
+    /// Where raster mode keeps the ids in the colour's alpha
+    /// ([`raster::ids_in_color`]), read from there.
     pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
+        if self.settings.mode == RenderMode::Raster && self.raster.variant().ids_in_color() {
+            // The ids are the colour's alpha, a half float per texel.
+            let bytes = readback::read_texture(gpu, &self.targets.raster.color, 8)?;
+            return Ok(bytes
+                .chunks_exact(8)
+                .map(|t| half::f16::from_le_bytes([t[6], t[7]]).to_f32() as u32)
+                .collect());
+        }
         let bytes = readback::read_texture(gpu, self.gbuffer(gpu).1, 4)?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }

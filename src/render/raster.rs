@@ -16,7 +16,7 @@ use crate::render::scene_buffers::{
     scene_layout, Cull, LightLayout, MeshLevel, SceneBuffers, ShadingVariant, PASS_GROUP,
     SCENE_GROUP,
 };
-use crate::render::settings::RenderMode;
+use crate::render::settings::{RenderMode, RenderSettings, Temporal};
 use crate::render::targets::{
     Targets, ALBEDO_FORMAT, COLOR_FORMAT, DEPTH_FORMAT, ID_FORMAT, NORMAL_DEPTH_FORMAT,
 };
@@ -54,6 +54,36 @@ pub struct RasterVariant {
     /// untextured scenes run the geometry entry points of
     /// `shaders/raster.wgsl`).
     shade: bool,
+    /// Whether the ids go in the colour's alpha, with no id target
+    /// ([`ids_in_color`]).
+    ids_in_color: bool,
+}
+
+impl RasterVariant {
+    /// Whether the ids go in the colour's alpha ([`ids_in_color`]).
+    pub fn ids_in_color(&self) -> bool {
+        self.ids_in_color
+    }
+}
+
+/// The most instances whose ids (instance + 1) a half float holds exactly:
+/// every integer up to 2048.
+pub const MAX_IDS_IN_COLOR: usize = 2048;
+
+/// Whether raster mode writes each fragment's id into the colour target's
+/// alpha (a half float, exact up to [`MAX_IDS_IN_COLOR`]) instead of an id
+/// target of its own: on the CPU driver each colour target costs the
+/// fragment path about as much as its bytes (removing the id target took
+/// the default scene's raster pass from 14.4 to 12.5 ms, while an R16 id
+/// target saved nothing: docs/performance-history.md, forty-second
+/// session). The outline marks and the accumulate pass then read the ids
+/// there (`IDS_IN_COLOR`, `shaders/lib/gbuffer.wgsl`). Not where the
+/// reproject pass runs (temporal reprojection), which reads and keeps an
+/// id texture.
+pub fn ids_in_color(instances: usize, settings: &RenderSettings) -> bool {
+    settings.mode == RenderMode::Raster
+        && settings.temporal == Temporal::Off
+        && instances <= MAX_IDS_IN_COLOR
 }
 
 /// Group 1 of the raster pass, binding by binding as `shaders/raster.wgsl`
@@ -92,13 +122,18 @@ impl RasterPass {
     }
 
     /// The variant `scene` (uploaded as `buffers`) needs in `mode`.
-    pub fn variant_of(scene: &Scene, buffers: &SceneBuffers, mode: RenderMode) -> RasterVariant {
+    pub fn variant_of(
+        scene: &Scene,
+        buffers: &SceneBuffers,
+        settings: &RenderSettings,
+    ) -> RasterVariant {
         RasterVariant {
             textures: buffers.uses_textures,
             shading: ShadingVariant::of(scene),
             lights: LightLayout::of(&scene.lights),
             tables: buffers.tables,
-            shade: mode == RenderMode::Raster,
+            shade: settings.mode == RenderMode::Raster,
+            ids_in_color: ids_in_color(scene.instances.len(), settings),
         }
     }
 
@@ -134,7 +169,8 @@ impl RasterPass {
     }
 
     /// Clears the G-buffer's colour (raster mode only) to `background`, its
-    /// ids to 0 and the depth buffer, and draws what `draws` selects. The
+    /// ids to 0 (the colour's alpha where [`ids_in_color`]) and the depth
+    /// buffer, and draws what `draws` selects. The
     /// normal + depth target keeps what it held where nothing is drawn:
     /// read it only where the id is not 0.
     pub fn encode(
@@ -170,7 +206,8 @@ impl RasterPass {
             r: f64::from(background[0]),
             g: f64::from(background[1]),
             b: f64::from(background[2]),
-            a: 1.0,
+            // Id 0: the background.
+            a: 0.0,
         };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("raster pass"),
@@ -180,7 +217,9 @@ impl RasterPass {
             // normal + depth target is never cleared: every reader (trace,
             // outline marks, accumulate, reproject) reads a texel's normal
             // and depth only where its id is not 0, that is where a
-            // fragment wrote both.
+            // fragment wrote both. Raster mode's ids are mostly in the
+            // colour's alpha, and its albedo is unread (the trace pass,
+            // which reads it, does not run).
             color_attachments: &[
                 if self.variant.shade {
                     attachment(&color, bg)
@@ -196,8 +235,12 @@ impl RasterPass {
                         store: wgpu::StoreOp::Store,
                     },
                 }),
-                attachment(&id, wgpu::Color::TRANSPARENT),
-                if self.variant.textures {
+                if self.variant.ids_in_color {
+                    None
+                } else {
+                    attachment(&id, wgpu::Color::TRANSPARENT)
+                },
+                if self.variant.textures && !self.variant.shade {
                     attachment(&albedo, wgpu::Color::TRANSPARENT)
                 } else {
                     None
@@ -460,9 +503,17 @@ fn raster_pipelines(
                             None
                         },
                         target(NORMAL_DEPTH_FORMAT, all),
-                        target(ID_FORMAT, all),
-                        // Only textured scenes' trace pass reads the albedo.
-                        if textures {
+                        // Fragments still output the id at location 2; with
+                        // no target there, the driver drops it.
+                        if variant.ids_in_color {
+                            None
+                        } else {
+                            target(ID_FORMAT, all)
+                        },
+                        // Only textured hybrid scenes' trace pass reads the
+                        // albedo (raster mode's fs_textured writes it to no
+                        // target).
+                        if textures && !variant.shade {
                             target(ALBEDO_FORMAT, all)
                         } else {
                             None

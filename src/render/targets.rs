@@ -16,6 +16,8 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
 /// The G-buffer: shaded colour, world normal + view depth, instance id + 1.
+/// In raster mode the ids are mostly the colour's alpha and `id` goes
+/// unwritten ([`crate::render::raster::ids_in_color`]).
 pub struct GBuffer {
     pub color: wgpu::Texture,
     pub normal_depth: wgpu::Texture,
@@ -178,7 +180,15 @@ impl Targets {
             width,
             height,
             raster: GBuffer {
-                color: texture(gpu, "raster colour", width, height, COLOR_FORMAT, attach),
+                // Copied out where the ids are its alpha (Renderer::read_ids).
+                color: texture(
+                    gpu,
+                    "raster colour",
+                    width,
+                    height,
+                    COLOR_FORMAT,
+                    attach | wgpu::TextureUsages::COPY_SRC,
+                ),
                 normal_depth: texture(
                     gpu,
                     "raster normal+depth",
