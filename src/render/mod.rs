@@ -1450,7 +1450,7 @@ impl Renderer {
     /// Where raster mode keeps the ids in the colour's alpha
     /// ([`raster::ids_in_color`]), read from there.
     pub fn read_ids(&self, gpu: &Gpu) -> Result<Vec<u32>, GpuError> {
-        if self.settings.mode == RenderMode::Raster && self.raster.variant().ids_in_color() {
+        if self.raster.variant().ids_in_color() {
             // The ids are the colour's alpha, a half float per texel.
             let bytes = readback::read_texture(gpu, &self.targets.raster.color, 8)?;
             return Ok(bytes

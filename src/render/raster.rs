@@ -73,10 +73,10 @@ pub const MAX_IDS_IN_COLOR: usize = 2048;
 /// Whether raster mode writes each fragment's id into the colour target's
 /// alpha (a half float, exact up to [`MAX_IDS_IN_COLOR`]) instead of an id
 /// target of its own: on the CPU driver each colour target costs the
-/// fragment path about as much as its bytes (removing the id target took
-/// the default scene's raster pass from 14.4 to 12.5 ms, while an R16 id
-/// target saved nothing: docs/performance-history.md, forty-second
-/// session). The outline marks and the accumulate pass then read the ids
+/// fragment path a share of its own, whatever its bytes (removing the id
+/// target took the default scene's raster pass from 14.4 to 12.5 ms,
+/// while an R16 id target saved nothing: docs/performance-history.md,
+/// forty-second session). Implies raster mode. The outline marks and the accumulate pass then read the ids
 /// there (`IDS_IN_COLOR`, `shaders/lib/gbuffer.wgsl`). Not where the
 /// reproject pass runs (temporal reprojection), which reads and keeps an
 /// id texture.
