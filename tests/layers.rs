@@ -25,6 +25,10 @@ const CPU_ONLY: &[&str] = &[
     "crate::capture",
 ];
 
+/// The headless layers above capture: what one view shows and the
+/// comparison sheets. Sampling and the fixtures sit below them.
+const ABOVE_CAPTURE: &[&str] = &["crate::view", "crate::compare", "crate::fixtures"];
+
 /// What no layer below the app may name.
 const UI: &[&str] = &["winit", "egui", "egui_wgpu", "egui_winit", "crate::app"];
 
@@ -35,7 +39,11 @@ const RULES: &[Rule] = &[
     },
     Rule {
         root: "src/sampling.rs",
-        forbidden: &[CPU_ONLY, &["crate::accel", "crate::scene", "clap"]],
+        forbidden: &[
+            CPU_ONLY,
+            &["crate::accel", "crate::scene", "clap"],
+            ABOVE_CAPTURE,
+        ],
     },
     Rule {
         root: "src/accel",
@@ -63,7 +71,11 @@ const RULES: &[Rule] = &[
     },
     Rule {
         root: "src/fixtures.rs",
-        forbidden: &[CPU_ONLY, &["crate::accel", "crate::sampling"]],
+        forbidden: &[
+            CPU_ONLY,
+            &["crate::accel", "crate::sampling"],
+            ABOVE_CAPTURE,
+        ],
     },
 ];
 

@@ -14,10 +14,12 @@
 //! stopping at once, where there are more tiles than a dispatch may
 //! count). Apart, the search's code costs nothing to the tiles that do
 //! not run it (docs/performance-history.md, seventeenth session).
-//! All three kernels read the G-buffer through `shaders/lib/gbuffer.wgsl`: one pipeline
-//! each for the raster pass's textures and one for the trace pass's buffers
-//! (override constant `TRACED_GBUFFER`), so the trace pass's output is read
-//! where it was written, with no copy between.
+//! All three kernels read the G-buffer through `shaders/lib/gbuffer.wgsl`:
+//! one pipeline each for the raster pass's textures, for the same with
+//! the ids in the colour's alpha (override constant `IDS_IN_COLOR`) and
+//! for the trace pass's buffers (`TRACED_GBUFFER`), so the trace pass's
+//! output is read where it was written, with no copy between
+//! ([`GBufferKind`]).
 
 use crate::gpu::layout::{
     read_only_storage_entry, read_write_storage_entry, texture_entry, uniform_entry,

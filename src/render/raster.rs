@@ -1,6 +1,7 @@
 //! Pass 1: rasterize into the raster G-buffer, shaded: every instance in
 //! raster mode, the meshes in hybrid mode (analytic shapes and CSG are
-//! traced), nothing in raytrace mode (the pass only clears). Group 0 is
+//! traced); in raytrace mode the renderer does not run it (nothing reads
+//! its targets there: `Renderer::render_sample`). Group 0 is
 //! the scene's shared group; group 1 is [`PASS_LAYOUT`] (frame uniforms).
 
 use std::collections::HashMap;
@@ -291,7 +292,8 @@ impl RasterPass {
 #[derive(Debug, Clone, Default)]
 pub struct RasterDraws {
     /// Raster mode draws everything; hybrid only meshes (the trace pass
-    /// finds analytic shapes exactly); raytrace nothing (only the clears).
+    /// finds analytic shapes exactly); raytrace nothing (the renderer
+    /// skips the pass there).
     pub mode: RenderMode,
     /// The level of detail of each of the scene's draws ([`draw_levels`]);
     /// missing entries draw the finest.
