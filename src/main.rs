@@ -475,6 +475,7 @@ fn render(args: RenderArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Resu
     }
     let mut scene = load_scene(args.scene.as_deref())?;
     apply_sets(&mut scene, &args.image.sets)?;
+    refuse_scene_image_as_output(&scene, &args.output)?;
     if let Some(model) = &args.shading {
         scene.override_shading(&parse_shading_model(model)?);
     }
@@ -669,6 +670,22 @@ fn parse_temporal(text: &str) -> Result<Temporal> {
     })
 }
 
+/// Refuses `output` where it is one of the images `scene` reads (a
+/// material's, or a mesh's own map): a render never replaces its inputs.
+/// The scene file itself is checked before it is loaded.
+fn refuse_scene_image_as_output(scene: &Scene, output: &Path) -> Result<()> {
+    for image in celray::render::textures::scene_images(scene) {
+        if same_file(&image.path, output) {
+            bail!(
+                "output {} is an image the scene reads ({}); refusing to overwrite an input",
+                output.display(),
+                image.source
+            );
+        }
+    }
+    Ok(())
+}
+
 fn same_file(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
@@ -718,6 +735,7 @@ fn compare(args: CompareArgs, adapter: &AdapterChoice, accel: AccelChoice) -> Re
     let views = ViewSpec::parse_list(&args.views)?;
     let mut scene = load_scene(args.scene.as_deref())?;
     apply_sets(&mut scene, &args.image.sets)?;
+    refuse_scene_image_as_output(&scene, &args.output)?;
     let settings = image_settings(
         args.width.unwrap_or(scene.camera.width),
         args.height.unwrap_or(scene.camera.height),

@@ -160,6 +160,62 @@ fn refuses_to_overwrite_the_scene_file() {
     assert_eq!(std::fs::read_to_string(&scene).unwrap(), "(version: 1)");
 }
 
+/// A render or a contact sheet whose output is an image the scene reads (a
+/// material's texture) is refused, naming the image, and the image keeps
+/// its bytes; the same scene renders to another name, so the refusal is
+/// the output's, not the scene's.
+#[test]
+fn refuses_to_overwrite_an_image_the_scene_reads() {
+    let dir = scratch("overwrite_image");
+    let texture = dir.join("t.png");
+    image::RgbaImage::from_pixel(4, 4, image::Rgba([200, 30, 30, 255]))
+        .save(&texture)
+        .unwrap();
+    let before = std::fs::read(&texture).unwrap();
+    std::fs::write(
+        dir.join("s.ron"),
+        "(version: 1, \
+         camera: (eye: (0.0, 0.0, 5.0), target: (0.0, 0.0, 0.0), up: (0.0, 1.0, 0.0), \
+                  fov_y_deg: 40.0, width: 16, height: 16), \
+         lights: [], \
+         materials: { \"m\": (base_color: (1.0, 1.0, 1.0), model: Toon(bands: 3), \
+                               base_color_texture: \"t.png\") }, \
+         shapes: { \"b\": Sphere(radius: 1.0) }, \
+         instances: [(shape: \"b\", material: \"m\")])",
+    )
+    .unwrap();
+    let cases: [&[&str]; 2] = [
+        &["render", "s.ron", "-o", "t.png", "--spp", "1", "--quiet"],
+        &[
+            "compare", "s.ron", "-o", "./t.png", "--spp", "1", "--views", "toon",
+        ],
+    ];
+    for args in cases {
+        let o = celray(args, &dir);
+        assert!(!o.status.success(), "{args:?} should be refused");
+        let err = stderr(&o);
+        assert!(
+            err.contains("is an image the scene reads") && err.contains("t.png"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(std::fs::read(&texture).unwrap(), before, "{args:?}");
+    }
+    let o = celray(
+        &[
+            "render",
+            "s.ron",
+            "-o",
+            "other.png",
+            "--spp",
+            "1",
+            "--quiet",
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.join("other.png").exists());
+}
+
 /// `celray adapters` lists the adapter the tests render on: lavapipe, a
 /// `Cpu` adapter, or the one `CELRAY_ADAPTER` names (by part of its name).
 #[test]
