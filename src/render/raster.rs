@@ -77,10 +77,10 @@ pub const MAX_IDS_IN_COLOR: usize = 2048;
 /// fragment path a share of its own, whatever its bytes (removing the id
 /// target took the default scene's raster pass from 14.4 to 12.5 ms,
 /// while an R16 id target saved nothing: docs/performance-history.md,
-/// forty-second session). Implies raster mode. The outline marks and the accumulate pass then read the ids
-/// there (`IDS_IN_COLOR`, `shaders/lib/gbuffer.wgsl`). Not where the
-/// reproject pass runs (temporal reprojection), which reads and keeps an
-/// id texture.
+/// forty-second session). Implies raster mode. The outline marks and the
+/// accumulate pass then read the ids there (`IDS_IN_COLOR`,
+/// `shaders/lib/gbuffer.wgsl`). Not where the reproject pass runs
+/// (temporal reprojection), which reads and keeps an id texture.
 pub fn ids_in_color(instances: usize, settings: &RenderSettings) -> bool {
     settings.mode == RenderMode::Raster
         && settings.temporal == Temporal::Off
